@@ -1,0 +1,267 @@
+//! The film: per-pixel sums of radiance samples, kept exactly.
+//!
+//! Each sample's radiance is rounded once to a fixed-point integer
+//! (2⁻³² units, [`FIXED_POINT_SCALE`]) and summed in `u128`. Integer sums do
+//! not depend on the order of addition, so a film is the same bit for bit
+//! however its samples were split — across threads, ray batches, sample
+//! passes, checkpoints or cluster shards — and merging partial films is
+//! exact. A sample that is NaN, infinite, negative or too large to represent
+//! (≥ 2³¹) is not added; it is counted in [`Film::invalid_samples`] and
+//! reported, never folded into the image silently.
+
+use crate::error::Error;
+use glam::Vec3;
+use std::io::{Read, Write};
+use std::ops::Range;
+use std::path::Path;
+
+/// Fixed-point units per unit of radiance.
+pub const FIXED_POINT_SCALE: f64 = 4_294_967_296.0;
+/// Samples at or above this radiance are refused as invalid.
+pub const MAX_SAMPLE: f32 = 2_147_483_648.0;
+
+/// The fixed-point sums of one pixel's samples, R, G, B.
+pub type PixelSum = [u128; 3];
+
+/// Add one sample to a pixel's sums. Returns false (and adds nothing) for an
+/// invalid sample: NaN, infinite, negative or ≥ [`MAX_SAMPLE`].
+#[inline]
+pub fn accumulate(sum: &mut PixelSum, rgb: Vec3) -> bool {
+    let c = rgb.to_array();
+    // `contains` is false for NaN as well.
+    if c.iter().any(|x| !(0.0..MAX_SAMPLE).contains(x)) {
+        return false;
+    }
+    for (s, x) in sum.iter_mut().zip(c) {
+        *s += (x as f64 * FIXED_POINT_SCALE).round() as u64 as u128;
+    }
+    true
+}
+
+/// An image being accumulated: sums of the samples of some sample ranges.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major per-pixel sums, row 0 at the top.
+    pub sums: Vec<PixelSum>,
+    /// The sample indices every pixel holds, sorted and disjoint.
+    pub ranges: Vec<Range<u32>>,
+    /// Samples refused as NaN, infinite, negative or too large.
+    pub invalid_samples: u64,
+}
+
+impl Film {
+    /// An empty film.
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            sums: vec![[0; 3]; width as usize * height as usize],
+            ranges: Vec::new(),
+            invalid_samples: 0,
+        }
+    }
+
+    /// How many samples each pixel holds.
+    pub fn samples_per_pixel(&self) -> u64 {
+        self.ranges.iter().map(|r| (r.end - r.start) as u64).sum()
+    }
+
+    /// Record that every pixel now also holds the samples in `range`.
+    /// Adjacent ranges are joined. Panics if `range` overlaps what is held.
+    pub fn add_range(&mut self, range: Range<u32>) {
+        assert!(
+            self.ranges
+                .iter()
+                .all(|r| range.end <= r.start || r.end <= range.start),
+            "sample range {range:?} overlaps {:?}",
+            self.ranges
+        );
+        self.ranges.push(range);
+        self.ranges.sort_by_key(|r| r.start);
+        let mut joined: Vec<Range<u32>> = Vec::with_capacity(self.ranges.len());
+        for r in self.ranges.drain(..) {
+            match joined.last_mut() {
+                Some(last) if last.end == r.start => last.end = r.end,
+                _ => joined.push(r),
+            }
+        }
+        self.ranges = joined;
+    }
+
+    /// The mean radiance of every pixel, row-major, as linear RGB `f32`.
+    pub fn to_rgb(&self) -> Vec<[f32; 3]> {
+        let n = self.samples_per_pixel().max(1) as f64 * FIXED_POINT_SCALE;
+        self.sums
+            .iter()
+            .map(|s| s.map(|c| (c as f64 / n) as f32))
+            .collect()
+    }
+
+    /// Write this film as an accumulation file (atomically): a header, the
+    /// sums, and a checksum. `settings_hash` identifies the scene and the
+    /// settings that change the image, so files of other renders are refused.
+    pub fn save(&self, path: &Path, settings_hash: u128) -> Result<(), Error> {
+        let header = AccHeader {
+            format: ACC_FORMAT.into(),
+            width: self.width,
+            height: self.height,
+            settings_hash: format!("{settings_hash:032x}"),
+            ranges: self.ranges.iter().map(|r| [r.start, r.end]).collect(),
+            invalid_samples: self.invalid_samples,
+        };
+        let header = serde_json::to_vec(&header).expect("header serialises");
+        let mut bytes = Vec::with_capacity(16 + header.len() + self.sums.len() * 48 + 16);
+        bytes.extend_from_slice(ACC_MAGIC);
+        bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&header);
+        for s in &self.sums {
+            for c in s {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        let check = xxhash_rust::xxh3::xxh3_128(&bytes);
+        bytes.extend_from_slice(&check.to_le_bytes());
+        crate::output::write_atomic(path, |w| w.write_all(&bytes))
+    }
+
+    /// Read an accumulation file, refusing a corrupt or truncated one, and
+    /// one whose settings hash is not `expected_hash` (when given).
+    /// Returns the film and the file's settings hash.
+    pub fn load(path: &Path, expected_hash: Option<u128>) -> Result<(Self, u128), Error> {
+        let bad = |message: String| Error::Accumulation {
+            path: path.to_path_buf(),
+            message,
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|mut f| f.read_to_end(&mut bytes))
+            .map_err(|e| bad(format!("cannot read: {e}")))?;
+        if bytes.len() < ACC_MAGIC.len() + 8 + 16 || &bytes[..8] != ACC_MAGIC {
+            return Err(bad("not a wavetrace accumulation file".into()));
+        }
+        let (body, check) = bytes.split_at(bytes.len() - 16);
+        if xxhash_rust::xxh3::xxh3_128(body) != u128::from_le_bytes(check.try_into().unwrap()) {
+            return Err(bad(
+                "checksum mismatch: the file is truncated or corrupt".into()
+            ));
+        }
+        let header_len = u64::from_le_bytes(body[8..16].try_into().unwrap()) as usize;
+        let header_bytes = body
+            .get(16..16usize.saturating_add(header_len))
+            .ok_or_else(|| bad("truncated header".into()))?;
+        let header: AccHeader = serde_json::from_slice(header_bytes)
+            .map_err(|e| bad(format!("unreadable header: {e}")))?;
+        if header.format != ACC_FORMAT {
+            return Err(bad(format!(
+                "format {:?}, expected {ACC_FORMAT:?}",
+                header.format
+            )));
+        }
+        let hash = u128::from_str_radix(&header.settings_hash, 16)
+            .map_err(|_| bad("unreadable settings hash".into()))?;
+        if let Some(expected) = expected_hash
+            && hash != expected
+        {
+            return Err(bad(
+                "made by a render of another scene or other settings (settings hash differs)"
+                    .into(),
+            ));
+        }
+        let pixels = header.width as usize * header.height as usize;
+        let data = &body[16 + header_len..];
+        if data.len() != pixels * 48 {
+            return Err(bad(format!(
+                "holds {} bytes of sums, expected {} for {}x{}",
+                data.len(),
+                pixels * 48,
+                header.width,
+                header.height
+            )));
+        }
+        let sums = data
+            .chunks_exact(48)
+            .map(|p| {
+                std::array::from_fn(|c| {
+                    u128::from_le_bytes(p[c * 16..c * 16 + 16].try_into().unwrap())
+                })
+            })
+            .collect();
+        let mut film = Film::new(header.width, header.height);
+        film.sums = sums;
+        film.invalid_samples = header.invalid_samples;
+        for [a, b] in header.ranges {
+            if a >= b || film.ranges.iter().any(|r| a < r.end && r.start < b) {
+                return Err(bad(format!("bad sample range {a}..{b}")));
+            }
+            film.add_range(a..b);
+        }
+        Ok((film, hash))
+    }
+}
+
+const ACC_MAGIC: &[u8; 8] = b"WTACC\0\0\x01";
+const ACC_FORMAT: &str = "wavetrace-accumulation/1";
+
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AccHeader {
+    format: String,
+    width: u32,
+    height: u32,
+    settings_hash: String,
+    ranges: Vec<[u32; 2]>,
+    invalid_samples: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn invalid_samples_are_refused() {
+        let mut s = [0; 3];
+        for bad in [f32::NAN, f32::INFINITY, -1.0, MAX_SAMPLE] {
+            assert!(!accumulate(&mut s, Vec3::new(0.5, bad, 0.5)));
+        }
+        assert_eq!(s, [0; 3]);
+        assert!(accumulate(&mut s, Vec3::new(0.5, 1.0, 0.0)));
+        assert_eq!(s, [1 << 31, 1 << 32, 0]);
+    }
+
+    #[test]
+    fn sums_do_not_depend_on_order() {
+        let xs: Vec<f32> = (0..1000)
+            .map(|i| (i as f32 * 0.7311).sin().abs() * 13.0)
+            .collect();
+        let (mut a, mut b) = ([0; 3], [0; 3]);
+        for &x in &xs {
+            accumulate(&mut a, Vec3::splat(x));
+        }
+        for &x in xs.iter().rev() {
+            accumulate(&mut b, Vec3::splat(x));
+        }
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn ranges_join_and_count() {
+        let mut f = Film::new(1, 1);
+        f.add_range(4..8);
+        f.add_range(0..4);
+        f.add_range(10..12);
+        assert_eq!(f.ranges, vec![0..8, 10..12]);
+        assert_eq!(f.samples_per_pixel(), 10);
+    }
+
+    #[test]
+    #[should_panic(expected = "overlaps")]
+    fn overlapping_range_panics() {
+        let mut f = Film::new(1, 1);
+        f.add_range(0..4);
+        f.add_range(3..5);
+    }
+}

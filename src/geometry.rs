@@ -1,0 +1,341 @@
+//! Ray/triangle intersection: Möller–Trumbore, written once for any [`Real`].
+//!
+//! The closest hit of a ray is the smallest `(t, triangle index)` pair, in
+//! that order: ties in `t` (a ray through a shared edge) go to the lower
+//! index. That makes the answer independent of the order triangles are
+//! tested in, so every intersector — scalar brute force, 8-wide packs, a
+//! hierarchy — returns the same triangle and the same `t`, bit for bit.
+
+use crate::real::{Real, V3, Vec3x8};
+use crate::scene::Triangle;
+use glam::Vec3;
+use wide::{f32x8, i32x8};
+
+/// A triangle as the intersection kernel wants it: one vertex and two edges.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleEdges {
+    /// Vertex 0.
+    pub v0: Vec3,
+    /// `v1 - v0`.
+    pub e1: Vec3,
+    /// `v2 - v0`.
+    pub e2: Vec3,
+}
+
+impl From<&Triangle> for TriangleEdges {
+    fn from(t: &Triangle) -> Self {
+        Self {
+            v0: t.v[0],
+            e1: t.v[1] - t.v[0],
+            e2: t.v[2] - t.v[0],
+        }
+    }
+}
+
+/// Möller–Trumbore: the distance `t` along the ray `o + t·d` at which it
+/// crosses the triangle `(v0, e1, e2)`, and whether that counts as a hit:
+/// inside the triangle (edges included) and `t_min < t < t_max`.
+///
+/// A ray parallel to the triangle's plane (determinant 0), or a degenerate
+/// triangle, makes `u`, `v` or `t` infinite or NaN, and every comparison
+/// with NaN is false: such rays miss.
+#[inline(always)]
+pub fn moller_trumbore<R: Real>(
+    o: V3<R>,
+    d: V3<R>,
+    v0: V3<R>,
+    e1: V3<R>,
+    e2: V3<R>,
+    t_min: R,
+    t_max: R,
+) -> (R::Mask, R) {
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    let inv_det = R::splat(1.0) / det;
+    let s = o - v0;
+    let u = s.dot(p) * inv_det;
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv_det;
+    let t = e2.dot(q) * inv_det;
+    let zero = R::splat(0.0);
+    let hit = zero.le(u) & zero.le(v) & (u + v).le(R::splat(1.0)) & t_min.lt(t) & t.lt(t_max);
+    (hit, t)
+}
+
+/// The closest hit of one ray: triangle index and distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the triangle hit.
+    pub triangle: u32,
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+}
+
+/// Scalar brute force over all triangles: the plainest closest-hit query.
+pub fn closest_hit_brute_force(
+    tris: &[TriangleEdges],
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<Hit> {
+    let (o, d) = (V3::from(o), V3::from(d));
+    let mut best: Option<Hit> = None;
+    for (i, tri) in tris.iter().enumerate() {
+        let limit = best.map_or(t_max, |h| h.t);
+        let (hit, t) = moller_trumbore(
+            o,
+            d,
+            V3::from(tri.v0),
+            V3::from(tri.e1),
+            V3::from(tri.e2),
+            t_min,
+            limit,
+        );
+        // Strictly closer only: on equal t the earlier (lower) index stays.
+        if hit {
+            best = Some(Hit {
+                triangle: i as u32,
+                t,
+            });
+        }
+    }
+    best
+}
+
+/// The hit point `o + t·d`, computed the same way by every engine.
+#[inline(always)]
+pub fn hit_point<R: Real>(o: V3<R>, d: V3<R>, t: R) -> V3<R> {
+    o + d.scale(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> TriangleEdges {
+        let t = Triangle::ccw(
+            [
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            0,
+        );
+        TriangleEdges::from(&t)
+    }
+
+    fn cast(t: &TriangleEdges, o: Vec3, d: Vec3) -> Option<f32> {
+        closest_hit_brute_force(std::slice::from_ref(t), o, d, 1e-4, f32::INFINITY).map(|h| h.t)
+    }
+
+    #[test]
+    fn hit_inside_returns_distance() {
+        let t = cast(&tri(), Vec3::new(0.25, 0.25, 0.0), Vec3::Z);
+        assert_eq!(t, Some(1.0));
+    }
+
+    #[test]
+    fn miss_outside() {
+        assert_eq!(cast(&tri(), Vec3::new(0.8, 0.8, 0.0), Vec3::Z), None);
+        assert_eq!(cast(&tri(), Vec3::new(-0.1, 0.5, 0.0), Vec3::Z), None);
+    }
+
+    #[test]
+    fn edges_and_vertices_count_as_hits() {
+        for o in [
+            Vec3::new(0.5, 0.0, 0.0), // edge v0-v1
+            Vec3::new(0.0, 0.5, 0.0), // edge v0-v2
+            Vec3::new(0.5, 0.5, 0.0), // hypotenuse
+            Vec3::new(0.0, 0.0, 0.0), // vertex
+        ] {
+            assert_eq!(cast(&tri(), o, Vec3::Z), Some(1.0), "origin {o}");
+        }
+    }
+
+    #[test]
+    fn parallel_ray_misses() {
+        // In the triangle's plane and parallel to it above the plane.
+        assert_eq!(cast(&tri(), Vec3::new(-1.0, 0.25, 1.0), Vec3::X), None);
+        assert_eq!(cast(&tri(), Vec3::new(-1.0, 0.25, 0.5), Vec3::X), None);
+    }
+
+    #[test]
+    fn triangle_behind_origin_misses() {
+        assert_eq!(cast(&tri(), Vec3::new(0.25, 0.25, 2.0), Vec3::Z), None);
+    }
+
+    #[test]
+    fn both_windings_hit_from_both_sides() {
+        let a = tri();
+        let b = TriangleEdges {
+            v0: a.v0,
+            e1: a.e2,
+            e2: a.e1,
+        };
+        for t in [a, b] {
+            assert_eq!(cast(&t, Vec3::new(0.25, 0.25, 0.0), Vec3::Z), Some(1.0));
+            assert_eq!(cast(&t, Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), Some(1.0));
+        }
+    }
+
+    #[test]
+    fn degenerate_triangle_never_hits() {
+        let t = TriangleEdges {
+            v0: Vec3::ZERO,
+            e1: Vec3::X,
+            e2: Vec3::X * 2.0,
+        };
+        assert_eq!(cast(&t, Vec3::new(0.5, 0.0, -1.0), Vec3::Z), None);
+    }
+
+    #[test]
+    fn shared_edge_tie_goes_to_lower_index() {
+        let a = tri();
+        // The mirror image across the hypotenuse shares the edge (1,0)-(0,1).
+        let b = TriangleEdges {
+            v0: Vec3::new(1.0, 1.0, 1.0),
+            e1: Vec3::new(-1.0, 0.0, 0.0),
+            e2: Vec3::new(0.0, -1.0, 0.0),
+        };
+        let o = Vec3::new(0.5, 0.5, 0.0);
+        let h = closest_hit_brute_force(&[a, b], o, Vec3::Z, 1e-4, f32::INFINITY).unwrap();
+        assert_eq!(h.triangle, 0);
+        let h = closest_hit_brute_force(&[b, a], o, Vec3::Z, 1e-4, f32::INFINITY).unwrap();
+        assert_eq!(h.triangle, 0);
+    }
+
+    #[test]
+    fn t_min_skips_the_surface_a_ray_starts_on() {
+        let o = Vec3::new(0.25, 0.25, 1.0);
+        assert_eq!(cast(&tri(), o, Vec3::Z), None);
+        assert_eq!(cast(&tri(), o, -Vec3::Z), None);
+    }
+}
+
+/// Eight triangles in structure-of-arrays form, tested against one ray at
+/// once by [`Triangle8::intersect`]. Unused lanes hold an all-zero
+/// triangle (which no ray hits) with index `u32::MAX`.
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle8 {
+    /// Vertex 0 of each lane's triangle.
+    pub v0: Vec3x8,
+    /// Edge `v1 - v0` of each lane.
+    pub e1: Vec3x8,
+    /// Edge `v2 - v0` of each lane.
+    pub e2: Vec3x8,
+    /// Each lane's triangle index (`u32::MAX` for padding), as `i32` bits.
+    pub index: i32x8,
+}
+
+/// The running closest hit of one ray, per lane, while packs are tested.
+#[derive(Clone, Copy, Debug)]
+pub struct LaneHits {
+    /// Best distance per lane (the ray's `t_max` where nothing was hit).
+    pub t: f32x8,
+    /// Triangle index per lane (`-1`, i.e. `u32::MAX`, where nothing was hit).
+    pub index: i32x8,
+}
+
+impl LaneHits {
+    /// No hit yet: every lane at `t_max`.
+    #[inline(always)]
+    pub fn new(t_max: f32) -> Self {
+        Self {
+            t: f32x8::splat(t_max),
+            index: i32x8::splat(-1),
+        }
+    }
+
+    /// The smallest `(t, index)` over the lanes, if any lane hit.
+    #[inline(always)]
+    pub fn closest(&self) -> Option<Hit> {
+        let (ts, ids) = (self.t.to_array(), self.index.to_array());
+        let mut best: Option<Hit> = None;
+        for l in 0..8 {
+            if ids[l] == -1 {
+                continue;
+            }
+            let h = Hit {
+                triangle: ids[l] as u32,
+                t: ts[l],
+            };
+            if best.is_none_or(|b| (h.t, h.triangle) < (b.t, b.triangle)) {
+                best = Some(h);
+            }
+        }
+        best
+    }
+}
+
+impl Triangle8 {
+    /// Pack up to eight triangles with their indices.
+    pub fn pack(tris: &[(u32, TriangleEdges)]) -> Self {
+        assert!(tris.len() <= 8);
+        let lane = |f: &dyn Fn(&TriangleEdges) -> f32| {
+            f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
+                tris.get(l).map_or(0.0, |(_, t)| f(t))
+            }))
+        };
+        let v3 = |g: &dyn Fn(&TriangleEdges) -> Vec3| {
+            V3::new(lane(&|t| g(t).x), lane(&|t| g(t).y), lane(&|t| g(t).z))
+        };
+        Self {
+            v0: v3(&|t| t.v0),
+            e1: v3(&|t| t.e1),
+            e2: v3(&|t| t.e2),
+            index: i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
+                tris.get(l).map_or(-1, |(i, _)| *i as i32)
+            })),
+        }
+    }
+
+    /// Pack a whole triangle list, eight at a time, in index order.
+    pub fn pack_all(tris: &[TriangleEdges]) -> Vec<Self> {
+        let indexed: Vec<(u32, TriangleEdges)> = tris
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (i as u32, *t))
+            .collect();
+        indexed.chunks(8).map(Self::pack).collect()
+    }
+
+    /// Test one ray (broadcast to all lanes) against the eight triangles,
+    /// keeping in `best` each lane's smallest `(t, index)`.
+    #[inline(always)]
+    pub fn intersect(&self, o: &Vec3x8, d: &Vec3x8, t_min: f32x8, best: &mut LaneHits) {
+        let (hit, t) = moller_trumbore(
+            *o,
+            *d,
+            self.v0,
+            self.e1,
+            self.e2,
+            t_min,
+            f32x8::splat(f32::INFINITY),
+        );
+        let idx_lt: f32x8 =
+            bytemuck::cast(self.index.simd_lt(best.index) | best.index.simd_eq(i32x8::splat(-1)));
+        let closer = hit & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt));
+        best.t = closer.select(t, best.t);
+        best.index = bytemuck::cast::<f32x8, i32x8>(closer).select(self.index, best.index);
+    }
+}
+
+/// Closest hit of one ray against packed triangles, 8 lanes at a time.
+/// Returns the same triangle and the same `t` as
+/// [`closest_hit_brute_force`], bit for bit.
+pub fn closest_hit_packs(
+    packs: &[Triangle8],
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<Hit> {
+    let (o8, d8) = (V3::splat(o), V3::splat(d));
+    let t_min8 = f32x8::splat(t_min);
+    let mut best = LaneHits::new(t_max);
+    for p in packs {
+        p.intersect(&o8, &d8, t_min8, &mut best);
+    }
+    best.closest()
+}

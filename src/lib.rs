@@ -1,0 +1,33 @@
+//! wavetrace: a fast, reproducible CPU path tracer.
+//!
+//! The data flow of a render:
+//!
+//! - [`scene`]: the scene (TOML files, the built-in Cornell box);
+//! - [`camera`]: camera rays, jittered over each pixel;
+//! - [`sampling`]: per-sample random streams and hemisphere sampling;
+//! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
+//! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`film`]: exact fixed-point accumulation of samples;
+//! - [`output`]: PNG, EXR and PFM images, written atomically;
+//! - [`render`]: settings and the driver that runs an engine;
+//! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
+//!
+//! [`real`] holds the one numeric source shared by scalar and 8-wide code.
+
+#![warn(missing_docs)]
+
+pub mod camera;
+pub mod cli;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod output;
+pub mod profile;
+pub mod real;
+pub mod reference;
+pub mod render;
+pub mod sampling;
+pub mod scene;
+pub mod stats;
+
+pub use error::{Error, Result};

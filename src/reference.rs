@@ -1,0 +1,99 @@
+//! The reference tracer: the report's `TracePath`, recursive and scalar.
+//!
+//! This is the oracle the wavefront engine is tested against, so it stays as
+//! plain as the report's pseudocode:
+//!
+//! ```text
+//! tracePath(ray, depth):
+//!     if depth >= max_depth: return black
+//!     hit = closest(ray); if none: return black
+//!     new_ray = (hit point, uniform direction on the hemisphere of the normal)
+//!     return emittance + (reflectance/π) · tracePath(new_ray, depth+1) · cos θ / (1/2π)
+//! ```
+//!
+//! Emission is one-sided (towards the triangle's front); reflection is
+//! two-sided (the hemisphere is the one the incoming ray came from).
+
+use crate::camera::RasterCamera;
+use crate::geometry::{TriangleEdges, closest_hit_brute_force, hit_point};
+use crate::real::V3;
+use crate::sampling::{PathRng, uniform_hemisphere};
+use crate::scene::Scene;
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// The scalar recursive path tracer over a brute-force triangle list.
+pub struct ReferenceTracer {
+    scene: Scene,
+    edges: Vec<TriangleEdges>,
+    epsilon: f32,
+    max_depth: u32,
+}
+
+impl ReferenceTracer {
+    /// A tracer for `scene` that follows paths to `max_depth`.
+    pub fn new(scene: &Scene, max_depth: u32) -> Self {
+        Self {
+            edges: scene.triangles.iter().map(TriangleEdges::from).collect(),
+            epsilon: scene.ray_epsilon(),
+            scene: scene.clone(),
+            max_depth,
+        }
+    }
+
+    /// The radiance arriving at `o` from direction `-d`, for a ray at
+    /// `depth` (camera rays are depth 0). `rays` counts the rays cast.
+    pub fn trace_path(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        depth: u32,
+        rng: &mut PathRng,
+        rays: &mut u64,
+    ) -> Vec3 {
+        if depth >= self.max_depth {
+            return Vec3::ZERO;
+        }
+        *rays += 1;
+        let Some(hit) = closest_hit_brute_force(&self.edges, o, d, self.epsilon, f32::INFINITY)
+        else {
+            return Vec3::ZERO;
+        };
+        let triangle = &self.scene.triangles[hit.triangle as usize];
+        let material = &self.scene.materials[triangle.material as usize];
+
+        // Seen from the front, the surface emits; either side reflects.
+        let front = V3::from(d).dot(V3::from(triangle.normal)) < 0.0;
+        let emittance = if front { material.emission } else { Vec3::ZERO };
+        let normal = if front {
+            triangle.normal
+        } else {
+            -triangle.normal
+        };
+
+        let new_origin = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
+        let (x1, x2) = (rng.next_f32(), rng.next_f32());
+        let new_dir = Vec3::from(uniform_hemisphere(V3::from(normal), x1, x2));
+
+        let probability = 1.0 / (2.0 * PI);
+        let cos_theta = V3::from(new_dir).dot(V3::from(normal));
+        let brdf = material.reflectance / PI;
+        let incoming = self.trace_path(new_origin, new_dir, depth + 1, rng, rays);
+        emittance + brdf * incoming * cos_theta / probability
+    }
+
+    /// One camera sample of pixel `(x, y)`: jittered uniformly over the
+    /// pixel's area, traced from depth 0.
+    pub fn sample(
+        &self,
+        camera: &RasterCamera,
+        seed: u64,
+        (x, y): (u32, u32),
+        sample: u32,
+        rays: &mut u64,
+    ) -> Vec3 {
+        let mut rng = PathRng::new(seed, camera.pixel_index(x, y), sample);
+        let (o, d) = camera.jittered_ray(&mut rng, x, y);
+        self.trace_path(o, d, 0, &mut rng, rays)
+    }
+}

@@ -1,0 +1,223 @@
+//! Render settings and the driver that runs an engine over sample ranges.
+
+use crate::error::{Error, Result};
+use crate::film::{Film, accumulate};
+use crate::reference::ReferenceTracer;
+use crate::scene::Scene;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::time::{Duration, Instant};
+
+/// Which path tracer computes the samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[derive(clap::ValueEnum)]
+pub enum Engine {
+    /// The scalar recursive reference tracer (the oracle).
+    Reference,
+}
+
+impl Engine {
+    /// The engine's name as the command line and stats spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Engine::Reference => "reference",
+        }
+    }
+
+    /// The engine named `name`.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "reference" => Ok(Engine::Reference),
+            _ => Err(Error::Settings(format!(
+                "unknown engine {name:?} (known: reference)"
+            ))),
+        }
+    }
+}
+
+/// Everything about a render that is not the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum path depth; the camera ray is depth 0.
+    pub max_depth: u32,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Worker threads.
+    pub threads: usize,
+    /// The path tracer.
+    pub engine: Engine,
+}
+
+impl RenderSettings {
+    /// The scene's defaults: its resolution and depth, 1 sample per pixel,
+    /// seed 0, all cores, the default engine.
+    pub fn for_scene(scene: &Scene) -> Self {
+        Self {
+            width: scene.camera.width,
+            height: scene.camera.height,
+            spp: 1,
+            max_depth: scene.max_depth,
+            seed: 0,
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            engine: Engine::Reference,
+        }
+    }
+
+    /// Refuse impossible settings, before any work starts.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: &str| Err(Error::Settings(m.into()));
+        if self.width == 0 || self.height == 0 {
+            return bad("the image must be at least 1x1 pixels");
+        }
+        if (self.width as u64) * (self.height as u64) > u32::MAX as u64 {
+            return bad("the image has more than 2^32 pixels");
+        }
+        if self.spp == 0 {
+            return bad("samples per pixel must be at least 1");
+        }
+        if self.max_depth == 0 {
+            return bad("max depth must be at least 1 (1 = only directly visible emitters)");
+        }
+        if self.threads == 0 {
+            return bad("threads must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// A hash of the scene and of every setting that changes the image's
+    /// bits (not the sample count, threads or batch size): partial films
+    /// of renders with equal hashes can be combined.
+    pub fn image_hash(&self, scene: &Scene) -> u128 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(&scene.content_hash().to_le_bytes());
+        h.update(&self.width.to_le_bytes());
+        h.update(&self.height.to_le_bytes());
+        h.update(&self.max_depth.to_le_bytes());
+        h.update(&self.seed.to_le_bytes());
+        h.update(self.engine.name().as_bytes());
+        h.digest128()
+    }
+}
+
+/// Work counted while rendering.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counters {
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Rays cast (closest-hit queries).
+    pub rays: u64,
+    /// Samples refused as NaN, infinite or negative.
+    pub invalid_samples: u64,
+}
+
+impl std::ops::AddAssign for Counters {
+    fn add_assign(&mut self, o: Self) {
+        self.paths += o.paths;
+        self.rays += o.rays;
+        self.invalid_samples += o.invalid_samples;
+    }
+}
+
+/// A scene prepared for one engine and one set of settings, with its pool
+/// of worker threads.
+pub struct Renderer {
+    settings: RenderSettings,
+    scene: Scene,
+    pool: rayon::ThreadPool,
+    engine: EngineState,
+}
+
+enum EngineState {
+    Reference(ReferenceTracer),
+}
+
+impl Renderer {
+    /// Validate the settings and prepare the scene.
+    pub fn new(scene: &Scene, settings: &RenderSettings) -> Result<Self> {
+        settings.validate()?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(settings.threads)
+            .build()
+            .map_err(|e| {
+                Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
+            })?;
+        let engine = match settings.engine {
+            Engine::Reference => {
+                EngineState::Reference(ReferenceTracer::new(scene, settings.max_depth))
+            }
+        };
+        Ok(Self {
+            settings: settings.clone(),
+            scene: scene.clone(),
+            pool,
+            engine,
+        })
+    }
+
+    /// The settings this renderer was made for.
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// A new, empty film of the right size.
+    pub fn new_film(&self) -> Film {
+        Film::new(self.settings.width, self.settings.height)
+    }
+
+    /// Add samples `range` of every pixel to `film`.
+    pub fn render_samples(&self, range: Range<u32>, film: &mut Film) -> Counters {
+        assert_eq!(
+            (film.width, film.height),
+            (self.settings.width, self.settings.height)
+        );
+        let s = &self.settings;
+        let camera = self.scene.camera.for_resolution(s.width, s.height);
+        let counters = self.pool.install(|| match &self.engine {
+            EngineState::Reference(tracer) => film
+                .sums
+                .par_chunks_mut(s.width as usize)
+                .enumerate()
+                .map(|(y, row)| {
+                    let mut c = Counters::default();
+                    for (x, sum) in row.iter_mut().enumerate() {
+                        for sample in range.clone() {
+                            let l = tracer.sample(
+                                &camera,
+                                s.seed,
+                                (x as u32, y as u32),
+                                sample,
+                                &mut c.rays,
+                            );
+                            c.paths += 1;
+                            if !accumulate(sum, l) {
+                                c.invalid_samples += 1;
+                            }
+                        }
+                    }
+                    c
+                })
+                .reduce(Counters::default, |mut a, b| {
+                    a += b;
+                    a
+                }),
+        });
+        film.add_range(range);
+        film.invalid_samples += counters.invalid_samples;
+        counters
+    }
+
+    /// Render samples `0..spp` into a new film, timing it.
+    pub fn render(&self) -> (Film, Counters, Duration) {
+        let mut film = self.new_film();
+        let start = Instant::now();
+        let counters = self.render_samples(0..self.settings.spp, &mut film);
+        (film, counters, start.elapsed())
+    }
+}

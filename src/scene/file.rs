@@ -1,0 +1,383 @@
+//! The TOML scene format (documented in `scenes/README.md`).
+//!
+//! Every error names the file, the line and column, and the field. Unknown
+//! keys are refused, not ignored: a typo never silently changes a render.
+
+use super::{Material, Scene, Triangle};
+use crate::camera::Camera;
+use glam::Vec3;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::fmt;
+use toml::Spanned;
+
+/// A scene file that cannot be used, and where the problem is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub struct SceneError {
+    /// The file (or a label for in-memory text).
+    pub file: String,
+    /// 1-based line; 0 when the problem has no place in the file.
+    pub line: usize,
+    /// 1-based column; 0 when unknown.
+    pub column: usize,
+    /// The dotted path of the offending field, when known.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if self.line > 0 {
+            write!(f, ":{}:{}", self.line, self.column)?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, ": field `{field}`")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: Option<String>,
+    front_face: Option<Spanned<String>>,
+    camera: Spanned<CameraFile>,
+    #[serde(default)]
+    integrator: IntegratorFile,
+    materials: BTreeMap<String, Spanned<MaterialFile>>,
+    #[serde(default, rename = "triangle")]
+    triangles: Vec<Spanned<TriangleFile>>,
+    #[serde(default, rename = "quad")]
+    quads: Vec<Spanned<QuadFile>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraFile {
+    position: Spanned<[f32; 3]>,
+    forward: Option<Spanned<[f32; 3]>>,
+    look_at: Option<Spanned<[f32; 3]>>,
+    up: Spanned<[f32; 3]>,
+    focal_length_px: Option<Spanned<f32>>,
+    vfov_deg: Option<Spanned<f32>>,
+    width: Spanned<u32>,
+    height: Spanned<u32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IntegratorFile {
+    #[serde(default = "default_max_depth")]
+    max_depth: Spanned<u32>,
+}
+
+impl Default for IntegratorFile {
+    fn default() -> Self {
+        Self {
+            max_depth: Spanned::new(0..0, default_max_depth().into_inner()),
+        }
+    }
+}
+
+fn default_max_depth() -> Spanned<u32> {
+    Spanned::new(0..0, 3)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialFile {
+    reflectance: Spanned<[f32; 3]>,
+    #[serde(default)]
+    emission: Option<Spanned<[f32; 3]>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TriangleFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    material: Spanned<String>,
+    vertices: Spanned<[[f32; 3]; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QuadFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    material: Spanned<String>,
+    vertices: Spanned<[[f32; 3]; 4]>,
+}
+
+/// Parse scene text; `file` names it in errors.
+pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
+    let at = |span: std::ops::Range<usize>, field: &str, message: String| {
+        let (line, column) = line_col(text, span.start);
+        SceneError {
+            file: file.to_string(),
+            line,
+            column,
+            field: Some(field.to_string()),
+            message,
+        }
+    };
+    let raw: SceneFile = toml::from_str(text).map_err(|e| {
+        let (line, column) = e.span().map_or((0, 0), |s| line_col(text, s.start));
+        SceneError {
+            file: file.to_string(),
+            line,
+            column,
+            field: field_of(e.message()).or_else(|| e.span().and_then(|s| key_at(text, s.start))),
+            message: e.message().trim().to_string(),
+        }
+    })?;
+
+    let ccw = match raw.front_face.as_ref().map(|s| s.get_ref().as_str()) {
+        None | Some("counterclockwise") => true,
+        Some("clockwise") => false,
+        Some(other) => {
+            let s = raw.front_face.as_ref().unwrap();
+            return Err(at(
+                s.span(),
+                "front_face",
+                format!("must be \"counterclockwise\" or \"clockwise\", not {other:?}"),
+            ));
+        }
+    };
+
+    // Camera.
+    let cam = raw.camera.get_ref();
+    let vec = |s: &Spanned<[f32; 3]>, field: &str| -> Result<Vec3, SceneError> {
+        let v = Vec3::from_array(*s.get_ref());
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(at(s.span(), field, "must be finite numbers".into()))
+        }
+    };
+    let position = vec(&cam.position, "camera.position")?;
+    let forward = match (&cam.forward, &cam.look_at) {
+        (Some(f), None) => vec(f, "camera.forward")?,
+        (None, Some(l)) => vec(l, "camera.look_at")? - position,
+        _ => {
+            return Err(at(
+                raw.camera.span(),
+                "camera",
+                "give exactly one of `forward` and `look_at`".into(),
+            ));
+        }
+    };
+    let up = vec(&cam.up, "camera.up")?;
+    for (s, field) in [(&cam.width, "camera.width"), (&cam.height, "camera.height")] {
+        if *s.get_ref() == 0 {
+            return Err(at(s.span(), field, "must be at least 1".into()));
+        }
+    }
+    let (width, height) = (*cam.width.get_ref(), *cam.height.get_ref());
+    let focal = match (&cam.focal_length_px, &cam.vfov_deg) {
+        (Some(f), None) => {
+            let v = *f.get_ref();
+            if !(v.is_finite() && v > 0.0) {
+                return Err(at(
+                    f.span(),
+                    "camera.focal_length_px",
+                    "must be a positive number".into(),
+                ));
+            }
+            v
+        }
+        (None, Some(a)) => {
+            let v = *a.get_ref();
+            if !(v > 0.0 && v < 180.0) {
+                return Err(at(
+                    a.span(),
+                    "camera.vfov_deg",
+                    "must be between 0 and 180 degrees".into(),
+                ));
+            }
+            Camera::focal_from_vfov(v, height)
+        }
+        _ => {
+            return Err(at(
+                raw.camera.span(),
+                "camera",
+                "give exactly one of `focal_length_px` and `vfov_deg`".into(),
+            ));
+        }
+    };
+    let camera = Camera::new(position, forward, up, focal, width, height).ok_or_else(|| {
+        at(
+            cam.up.span(),
+            "camera.up",
+            "the viewing direction must be non-zero and not parallel to `up`".into(),
+        )
+    })?;
+
+    // Materials.
+    let mut materials = Vec::new();
+    let mut index = BTreeMap::new();
+    for (name, m) in &raw.materials {
+        let m_ref = m.get_ref();
+        let field = format!("materials.{name}.reflectance");
+        let reflectance = vec(&m_ref.reflectance, &field)?;
+        if reflectance.min_element() < 0.0 || reflectance.max_element() > 1.0 {
+            return Err(at(
+                m_ref.reflectance.span(),
+                &field,
+                "each component must be in [0, 1]".into(),
+            ));
+        }
+        let emission = match &m_ref.emission {
+            None => Vec3::ZERO,
+            Some(e) => {
+                let field = format!("materials.{name}.emission");
+                let v = vec(e, &field)?;
+                if v.min_element() < 0.0 {
+                    return Err(at(e.span(), &field, "must not be negative".into()));
+                }
+                v
+            }
+        };
+        index.insert(name.clone(), materials.len() as u32);
+        materials.push(Material {
+            name: name.clone(),
+            reflectance,
+            emission,
+        });
+    }
+
+    // Geometry: triangles, then quads (each split into two triangles).
+    let mut triangles = Vec::new();
+    let polygons = raw
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let t = t.get_ref();
+            let v = t.vertices.get_ref();
+            (
+                format!("triangle[{i}]"),
+                &t.material,
+                t.vertices.span(),
+                v.to_vec(),
+            )
+        })
+        .chain(raw.quads.iter().enumerate().map(|(i, q)| {
+            let q = q.get_ref();
+            let v = q.vertices.get_ref();
+            (
+                format!("quad[{i}]"),
+                &q.material,
+                q.vertices.span(),
+                v.to_vec(),
+            )
+        }));
+    for (what, material, span, verts) in polygons {
+        let m = *index.get(material.get_ref()).ok_or_else(|| {
+            at(
+                material.span(),
+                &format!("{what}.material"),
+                format!(
+                    "no material named {:?} (the file defines: {})",
+                    material.get_ref(),
+                    raw.materials.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })?;
+        let verts: Vec<Vec3> = verts.into_iter().map(Vec3::from_array).collect();
+        if verts.iter().any(|v| !v.is_finite()) {
+            return Err(at(
+                span,
+                &format!("{what}.vertices"),
+                "must be finite numbers".into(),
+            ));
+        }
+        let fans: &[[usize; 3]] = if verts.len() == 4 {
+            &[[0, 1, 2], [0, 2, 3]]
+        } else {
+            &[[0, 1, 2]]
+        };
+        for f in fans {
+            let v = [verts[f[0]], verts[f[1]], verts[f[2]]];
+            let t = if ccw {
+                Triangle::ccw(v, m)
+            } else {
+                Triangle::cw(v, m)
+            };
+            if t.normal == Vec3::ZERO {
+                return Err(at(
+                    span.clone(),
+                    &format!("{what}.vertices"),
+                    "the vertices do not span a triangle (zero area)".into(),
+                ));
+            }
+            triangles.push(t);
+        }
+    }
+    if triangles.is_empty() {
+        return Err(SceneError {
+            file: file.to_string(),
+            line: 0,
+            column: 0,
+            field: None,
+            message: "the scene has no geometry (no [[triangle]] or [[quad]])".into(),
+        });
+    }
+
+    let max_depth = *raw.integrator.max_depth.get_ref();
+    if max_depth == 0 {
+        return Err(at(
+            raw.integrator.max_depth.span(),
+            "integrator.max_depth",
+            "must be at least 1".into(),
+        ));
+    }
+    Ok(Scene {
+        name: raw.name.unwrap_or_else(|| {
+            std::path::Path::new(file)
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+        }),
+        camera,
+        materials,
+        triangles,
+        max_depth,
+    })
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// The dotted key whose value holds byte `offset`: the nearest table header
+/// above it (`[camera]`, `[[triangle]]`) and the `key =` on its line.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let before = &text[..offset.min(text.len())];
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let line = &text[line_start..];
+    let key = line.split_once('=').map(|(k, _)| k.trim())?;
+    let table = before[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim());
+    Some(match table {
+        Some(t) => format!("{t}.{key}"),
+        None => key.to_string(),
+    })
+}
+
+/// The field a serde message is about (`unknown field `x``, `missing field `x``).
+fn field_of(message: &str) -> Option<String> {
+    let start = message.find("field `")? + "field `".len();
+    let len = message[start..].find('`')?;
+    Some(message[start..start + len].to_string())
+}

@@ -1,0 +1,151 @@
+//! The scene: camera, materials and triangles.
+//!
+//! Scenes are read from TOML files ([`file`]); the DH2323 Cornell box is
+//! built in ([`Scene::cornell`]) and is the default scene.
+
+pub mod file;
+
+use crate::camera::Camera;
+use glam::Vec3;
+
+pub use file::SceneError;
+
+/// The source of the built-in default scene, `scenes/cornell.toml`.
+pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
+
+/// An ideal diffuse (Lambertian) material that may also emit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// The name the scene file gave it.
+    pub name: String,
+    /// Diffuse reflectance ρ per RGB channel, in `[0, 1]`; the BRDF is ρ/π,
+    /// on both sides of the surface.
+    pub reflectance: Vec3,
+    /// Emitted radiance per RGB channel, towards the front side only.
+    pub emission: Vec3,
+}
+
+impl Material {
+    /// Whether the material emits any light.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// A triangle with a material; its front side is the side `normal` points to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    /// The three vertices.
+    pub v: [Vec3; 3],
+    /// Unit geometric normal on the front (emitting) side.
+    pub normal: Vec3,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+impl Triangle {
+    /// A triangle whose front is the counter-clockwise side:
+    /// `normal = normalize((v1 - v0) × (v2 - v0))`.
+    pub fn ccw(v: [Vec3; 3], material: u32) -> Self {
+        let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+        Self {
+            v,
+            normal,
+            material,
+        }
+    }
+
+    /// A triangle whose front is the clockwise side:
+    /// `normal = normalize((v2 - v0) × (v1 - v0))`, the DH2323 lab's rule.
+    pub fn cw(v: [Vec3; 3], material: u32) -> Self {
+        let normal = (v[2] - v[0]).cross(v[1] - v[0]).normalize_or_zero();
+        Self {
+            v,
+            normal,
+            material,
+        }
+    }
+}
+
+/// Everything a render needs to know about the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// A short name for logs and stats.
+    pub name: String,
+    /// The camera and its default resolution.
+    pub camera: Camera,
+    /// Materials, referenced by index from the triangles.
+    pub materials: Vec<Material>,
+    /// All geometry.
+    pub triangles: Vec<Triangle>,
+    /// Default maximum path depth (the camera ray is depth 0).
+    pub max_depth: u32,
+}
+
+impl Scene {
+    /// The DH2323 Cornell box (`scenes/cornell.toml`, built in).
+    pub fn cornell() -> Self {
+        file::parse(CORNELL_TOML, "scenes/cornell.toml")
+            .expect("the built-in Cornell box scene parses")
+    }
+
+    /// Read a scene from a TOML file.
+    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: path.display().to_string(),
+            line: 0,
+            column: 0,
+            field: None,
+            message: format!("cannot read the scene file: {e}"),
+        })?;
+        file::parse(&text, &path.display().to_string())
+    }
+
+    /// The largest absolute coordinate of any vertex (at least 1).
+    pub fn extent(&self) -> f32 {
+        self.triangles
+            .iter()
+            .flat_map(|t| t.v)
+            .map(|v| v.abs().max_element())
+            .fold(1.0, f32::max)
+    }
+
+    /// The smallest ray distance counted as a hit: rays leave a surface
+    /// from the hit point itself, and this keeps them from finding the
+    /// surface they start on again through rounding.
+    pub fn ray_epsilon(&self) -> f32 {
+        1e-4 * self.extent()
+    }
+
+    /// A 128-bit hash of everything in the scene that changes an image:
+    /// geometry, materials and camera (not the name).
+    pub fn content_hash(&self) -> u128 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        let mut put = |v: Vec3| {
+            for c in v.to_array() {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        };
+        let c = &self.camera;
+        for v in [c.position, c.forward, c.up, c.right] {
+            put(v);
+        }
+        put(Vec3::new(
+            c.focal_length_px,
+            c.width as f32,
+            c.height as f32,
+        ));
+        for m in &self.materials {
+            put(m.reflectance);
+            put(m.emission);
+        }
+        for t in &self.triangles {
+            for v in t.v {
+                put(v);
+            }
+            put(t.normal);
+            put(Vec3::splat(t.material as f32));
+        }
+        h.digest128()
+    }
+}
