@@ -7,6 +7,8 @@
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
 //! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`wavefront`]: the SIMD wavefront engine (generate → intersect →
+//!   shade → bounce), the default;
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
@@ -29,5 +31,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod stats;
+pub mod wavefront;
 
 pub use error::{Error, Result};
