@@ -45,8 +45,8 @@ pub fn shade(
         let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
         if d.dot(V3::new(n[0], n[1], n[2])) < 0.0 {
             let e = world.emission[world.material_of[tri as usize] as usize];
-            for c in 0..3 {
-                queue.radiance[c][i] = queue.radiance[c][i] + queue.beta[c][i] * e[c];
+            for (c, e) in e.iter().enumerate() {
+                queue.radiance[c][i] += queue.beta[c][i] * e;
             }
         }
         if last {
