@@ -233,7 +233,7 @@ pub struct Triangle8 {
 pub struct LaneHits {
     /// Best distance per lane (the ray's `t_max` where nothing was hit).
     pub t: f32x8,
-    /// Triangle index per lane (`-1`, i.e. `u32::MAX`, where nothing was hit).
+    /// Triangle index per lane (`i32::MAX` where nothing was hit).
     pub index: i32x8,
 }
 
@@ -243,28 +243,24 @@ impl LaneHits {
     pub fn new(t_max: f32) -> Self {
         Self {
             t: f32x8::splat(t_max),
-            index: i32x8::splat(-1),
+            index: i32x8::splat(i32::MAX),
         }
     }
 
     /// The smallest `(t, index)` over the lanes, if any lane hit.
+    ///
+    /// Branch-free: the smallest `t`, then the smallest index among the
+    /// lanes holding it. Lanes that hit nothing hold `t_max` (which no hit
+    /// reaches) and index `i32::MAX`.
     #[inline(always)]
     pub fn closest(&self) -> Option<Hit> {
-        let (ts, ids) = (self.t.to_array(), self.index.to_array());
-        let mut best: Option<Hit> = None;
-        for l in 0..8 {
-            if ids[l] == -1 {
-                continue;
-            }
-            let h = Hit {
-                triangle: ids[l] as u32,
-                t: ts[l],
-            };
-            if best.is_none_or(|b| (h.t, h.triangle) < (b.t, b.triangle)) {
-                best = Some(h);
-            }
-        }
-        best
+        let t = self.t.to_array().into_iter().fold(f32::INFINITY, f32::min);
+        let at_min: i32x8 = bytemuck::cast(self.t.simd_eq(f32x8::splat(t)));
+        let index = at_min.select(self.index, i32x8::splat(i32::MAX)).reduce_min();
+        (index != i32::MAX).then_some(Hit {
+            triangle: index as u32,
+            t,
+        })
     }
 }
 
@@ -313,8 +309,7 @@ impl Triangle8 {
             t_min,
             f32x8::splat(f32::INFINITY),
         );
-        let idx_lt: f32x8 =
-            bytemuck::cast(self.index.simd_lt(best.index) | best.index.simd_eq(i32x8::splat(-1)));
+        let idx_lt: f32x8 = bytemuck::cast(self.index.simd_lt(best.index));
         let closer = hit & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt));
         best.t = closer.select(t, best.t);
         best.index = bytemuck::cast::<f32x8, i32x8>(closer).select(self.index, best.index);
