@@ -228,25 +228,31 @@ fn cos_theta_is_uniform() {
 }
 
 #[test]
-fn directions_are_uniform_over_the_sphere_when_both_sides_are_used() {
-    // Mirror every other sample through the plane: a uniform hemisphere
-    // sample then covers the sphere uniformly, whose mean is 0 — a check of
-    // the whole direction, not just of its cos θ and φ separately.
-    let n = Vec3::new(0.3, -0.8, 0.52).normalize();
-    let mut rng = PathRng::new(3, 1, 4);
-    let mut sum = glam::DVec3::ZERO;
-    for i in 0..N {
-        let d = sample(n, rng.next_f32(), rng.next_f32()).as_dvec3();
-        sum += if i % 2 == 0 { d } else { -d };
-    }
-    // Each component of a uniform unit vector has variance 1/3.
-    let se = (1.0 / 3.0 / N as f64).sqrt();
-    let mean = sum / N as f64;
-    for c in mean.to_array() {
+fn mean_direction_is_half_the_normal() {
+    // A check of the whole direction, not of cos θ and φ separately: for a
+    // uniform hemisphere, E[d] = n/2 (E[cos θ] = 1/2, and the tangential
+    // components average to 0). In a tangent frame (t, b):
+    // Var(d·t) = Var(d·b) = E[sin² θ]/2 = 1/3, Var(d·n) = 1/12.
+    for (i, n) in normals().into_iter().enumerate() {
+        let (t, b) = my_frame(n);
+        let mut rng = PathRng::new(31, 300 + i as u32, 0);
+        let mut sum = glam::DVec3::ZERO;
+        for _ in 0..N {
+            let d = sample(n, rng.next_f32(), rng.next_f32());
+            sum += glam::DVec3::new(d.dot(t) as f64, d.dot(b) as f64, d.dot(n) as f64);
+        }
+        let mean = sum / N as f64;
+        let se_t = (1.0 / 3.0 / N as f64).sqrt();
+        let se_n = (1.0 / 12.0 / N as f64).sqrt();
         assert!(
-            c.abs() < 5.0 * se,
-            "mean direction {mean}, bound {}",
-            5.0 * se
+            mean.x.abs() < 5.0 * se_t && mean.y.abs() < 5.0 * se_t,
+            "n = {n}: mean tangential components {mean}, bound {}",
+            5.0 * se_t
+        );
+        assert!(
+            (mean.z - 0.5).abs() < 5.0 * se_n,
+            "n = {n}: mean d·n {}",
+            mean.z
         );
     }
 }
