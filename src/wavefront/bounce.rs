@@ -49,8 +49,9 @@ pub fn diffuse(cur: &mut PathQueue, rows: &[u32], world: &World, next: &mut Path
         let front = d.dot(normal).simd_lt(f32x8::ZERO);
         let n = V3::select(front, normal, V3::new(-normal.x, -normal.y, -normal.z));
         let origin = hit_point(o, d, t);
-        let dir = uniform_hemisphere(n, f32x8::from(x1), f32x8::from(x2));
-        let cos_theta = dir.dot(n);
+        let x1 = f32x8::from(x1);
+        let dir = uniform_hemisphere(n, x1, f32x8::from(x2));
+        let cos_theta = x1; // by construction (see the reference tracer)
         let probability = f32x8::splat(1.0 / (2.0 * PI));
 
         let origin = [
