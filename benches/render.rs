@@ -8,7 +8,10 @@ use wavetrace::scene::Scene;
 fn render(c: &mut Criterion) {
     let scene = Scene::cornell();
     let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    for (unit, group_name) in [("rays", "render_cornell_rays"), ("paths", "render_cornell_paths")] {
+    for (unit, group_name) in [
+        ("rays", "render_cornell_rays"),
+        ("paths", "render_cornell_paths"),
+    ] {
         let mut group = c.benchmark_group(group_name);
         group.sample_size(10);
         for engine in [Engine::Wavefront, Engine::Reference] {
@@ -18,7 +21,11 @@ fn render(c: &mut Criterion) {
                 let renderer = Renderer::new(&scene, &s).unwrap();
                 // Rays and paths are the same in every run of a seed.
                 let (_, counters, _) = renderer.render();
-                let n = if unit == "rays" { counters.rays } else { counters.paths };
+                let n = if unit == "rays" {
+                    counters.rays
+                } else {
+                    counters.paths
+                };
                 group.throughput(Throughput::Elements(n));
                 group.bench_function(format!("{}_{}t", engine.name(), threads), |b| {
                     b.iter(|| renderer.render())

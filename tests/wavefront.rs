@@ -173,11 +173,7 @@ fn simd_intersector_equals_scalar_on_a_million_rays() {
                 Vec3::new((i + a) as f32 * 0.5 - 1.0, (j + b) as f32 * 0.5 - 1.0, 0.25)
             };
             for v in [[p(0, 0), p(1, 0), p(1, 1)], [p(0, 0), p(1, 1), p(0, 1)]] {
-                grid.push(TriangleEdges {
-                    v0: v[0],
-                    e1: v[1] - v[0],
-                    e2: v[2] - v[0],
-                });
+                grid.push(TriangleEdges::new(v[0], v[1], v[2]));
             }
         }
     }
@@ -185,11 +181,7 @@ fn simd_intersector_equals_scalar_on_a_million_rays() {
     for _ in 0..13 {
         let mut v = || Vec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0);
         let (a, b, c) = (v(), v(), v());
-        soup.push(TriangleEdges {
-            v0: a,
-            e1: b - a,
-            e2: c - a,
-        });
+        soup.push(TriangleEdges::new(a, b, c));
     }
 
     let mut count = 0;
