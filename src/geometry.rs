@@ -63,7 +63,7 @@ pub fn moller_trumbore<R: Real>(o: V3<R>, d: V3<R>, tri: &V3Tri<R>, t_min: R) ->
     let w = c.cross(d);
     let inv_den = R::splat(1.0) / d.dot(tri.n);
     let u = tri.e2.dot(w) * inv_den;
-    let v = -(tri.e1.dot(w)) * inv_den;
+    let v = -tri.e1.dot(w) * inv_den;
     let t = c.dot(tri.n) * inv_den;
     let zero = R::splat(0.0);
     let inside = zero.le(u) & zero.le(v) & (u + v).le(R::splat(1.0)) & t_min.lt(t);
@@ -130,7 +130,7 @@ pub fn closest_hit_brute_force(
 /// The hit point `o + t·d`, computed the same way by every engine.
 #[inline(always)]
 pub fn hit_point<R: Real>(o: V3<R>, d: V3<R>, t: R) -> V3<R> {
-    o + d.scale(t)
+    d.mul_add(t, o)
 }
 
 #[cfg(test)]
