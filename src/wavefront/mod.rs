@@ -6,8 +6,8 @@
 //! 2. then, once per depth: [`intersect`](intersect::intersect) every ray
 //!    (8 triangles at a time), [`shade`](shade::shade) (emission, retire
 //!    finished paths, bin the rest by material), and
-//!    [`bounce`](bounce::diffuse) (next direction and throughput, compacted
-//!    into the next queue).
+//!    [`bounce`](bounce::diffuse) (compact the live paths, then next
+//!    direction and throughput, 8 paths at a time).
 //!
 //! Threads take tiles of pixels; a tile's batches own their queues and
 //! write the tile's pixel sums without locks. Every number a path draws comes
@@ -76,10 +76,9 @@ impl World {
     }
 }
 
-/// Per-thread working memory: two queues (current and next) and the bins.
+/// Per-thread working memory: the queue and the material bins.
 pub struct Scratch {
-    cur: PathQueue,
-    next: PathQueue,
+    queue: PathQueue,
     bins: Bins,
 }
 
@@ -87,8 +86,7 @@ impl Scratch {
     /// Room for batches of `batch_size` paths.
     pub fn new(batch_size: usize) -> Self {
         Self {
-            cur: PathQueue::with_capacity(batch_size),
-            next: PathQueue::with_capacity(batch_size),
+            queue: PathQueue::with_capacity(batch_size),
             bins: Bins::default(),
         }
     }
@@ -171,31 +169,28 @@ impl WavefrontEngine {
         sums: &mut [PixelSum],
         counters: &mut Counters,
     ) {
-        let Scratch { cur, next, bins } = scratch;
+        let Scratch { queue, bins } = scratch;
         let clock = Instant::now();
-        cur.clear();
-        generate::generate(cur, camera, width, seed, pixels, samples);
-        counters.paths += cur.len() as u64;
+        generate::generate(queue, camera, width, seed, pixels, samples);
+        counters.paths += queue.len() as u64;
         let mut stages = StageSeconds {
             generate: clock.elapsed().as_secs_f64(),
             ..StageSeconds::default()
         };
 
         for depth in 0..self.max_depth {
-            if cur.is_empty() {
+            if queue.is_empty() {
                 break;
             }
             let clock = Instant::now();
-            counters.rays += cur.len() as u64;
-            intersect::intersect(cur, &self.world);
+            counters.rays += queue.len() as u64;
+            intersect::intersect(queue, &self.world);
             let t1 = Instant::now();
             let last = depth + 1 >= self.max_depth;
             counters.invalid_samples +=
-                shade::shade(cur, &self.world, last, tile_start, sums, bins);
+                shade::shade(queue, &self.world, last, tile_start, sums, bins);
             let t2 = Instant::now();
-            next.clear();
-            bounce::diffuse(cur, &bins.diffuse, &self.world, next);
-            std::mem::swap(cur, next);
+            bounce::diffuse(queue, &bins.diffuse, &self.world);
             let t3 = Instant::now();
             stages.intersect += (t1 - clock).as_secs_f64();
             stages.shade += (t2 - t1).as_secs_f64();

@@ -1,16 +1,20 @@
 //! The ray queue: every live path's state, one plain column per field.
 
 use crate::sampling::PathRng;
+use wide::f32x8;
 
 /// Marks a ray that hit nothing in [`PathQueue::hit`].
 pub const MISS: u32 = u32::MAX;
 
 /// The state of a batch of paths in structure-of-arrays form.
 ///
-/// Row `i` of every column belongs to path `i`. The intersect stage fills
+/// Row `i < len()` of every column belongs to path `i`. Columns are
+/// allocated once, for the batch size rounded up to a multiple of 8, so the
+/// stages can load and store 8 rows at a time. The intersect stage fills
 /// `t` and `hit`; the other columns are the path's state between bounces.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct PathQueue {
+    len: usize,
     /// Pixel index (row-major) the path's sample belongs to.
     pub pixel: Vec<u32>,
     /// The path's random stream.
@@ -32,57 +36,68 @@ pub struct PathQueue {
 impl PathQueue {
     /// An empty queue with room for `n` paths.
     pub fn with_capacity(n: usize) -> Self {
-        let col = || Vec::<f32>::with_capacity(n);
+        let rows = n.div_ceil(8) * 8;
+        let col = || vec![0.0f32; rows];
         Self {
-            pixel: Vec::with_capacity(n),
-            rng: Vec::with_capacity(n),
+            len: 0,
+            pixel: vec![0; rows],
+            rng: vec![PathRng::new(0, 0, 0); rows],
             o: [col(), col(), col()],
             d: [col(), col(), col()],
             beta: [col(), col(), col()],
             radiance: [col(), col(), col()],
             t: col(),
-            hit: Vec::with_capacity(n),
+            hit: vec![MISS; rows],
         }
+    }
+
+    /// Room in rows.
+    pub fn capacity(&self) -> usize {
+        self.pixel.len()
     }
 
     /// Number of paths.
     pub fn len(&self) -> usize {
-        self.pixel.len()
+        self.len
     }
 
     /// Whether the queue holds no path.
     pub fn is_empty(&self) -> bool {
-        self.pixel.is_empty()
+        self.len == 0
     }
 
-    /// Remove every path, keeping the memory.
-    pub fn clear(&mut self) {
-        self.pixel.clear();
-        self.rng.clear();
-        for c in self
-            .o
-            .iter_mut()
-            .chain(&mut self.d)
-            .chain(&mut self.beta)
-            .chain(&mut self.radiance)
-        {
-            c.clear();
-        }
-        self.t.clear();
-        self.hit.clear();
+    /// Set the number of paths (rows past it are free).
+    pub fn set_len(&mut self, len: usize) {
+        assert!(len <= self.capacity());
+        self.len = len;
     }
 
-    /// Append a new path: a ray with throughput 1 and no radiance yet.
+    /// Write a new path in row `i`: a ray with throughput 1 and no
+    /// radiance yet.
     #[inline]
-    pub fn push_camera_ray(&mut self, pixel: u32, rng: PathRng, o: [f32; 3], d: [f32; 3]) {
-        self.pixel.push(pixel);
-        self.rng.push(rng);
+    pub fn set_camera_ray(&mut self, i: usize, pixel: u32, rng: PathRng, o: [f32; 3], d: [f32; 3]) {
+        self.pixel[i] = pixel;
+        self.rng[i] = rng;
         for c in 0..3 {
-            self.o[c].push(o[c]);
-            self.d[c].push(d[c]);
-            self.beta[c].push(1.0);
-            self.radiance[c].push(0.0);
+            self.o[c][i] = o[c];
+            self.d[c][i] = d[c];
+            self.beta[c][i] = 1.0;
+            self.radiance[c][i] = 0.0;
         }
+    }
+
+    /// Copy path `from` into row `to` (the stage outputs `t`, `hit` too).
+    #[inline]
+    pub fn move_row(&mut self, from: usize, to: usize) {
+        self.pixel[to] = self.pixel[from];
+        self.rng[to] = self.rng[from].clone();
+        for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
+            for col in cols.iter_mut() {
+                col[to] = col[from];
+            }
+        }
+        self.t[to] = self.t[from];
+        self.hit[to] = self.hit[from];
     }
 
     /// The radiance gathered by path `i`.
@@ -94,4 +109,17 @@ impl PathQueue {
             self.radiance[2][i],
         )
     }
+}
+
+/// Rows `i..i + 8` of a column (in bounds: columns are multiples of 8).
+#[inline(always)]
+pub fn load8(col: &[f32], i: usize) -> f32x8 {
+    let rows: [f32; 8] = col[i..i + 8].try_into().expect("8 rows");
+    f32x8::from(rows)
+}
+
+/// Store `v` in rows `i..i + 8` of a column.
+#[inline(always)]
+pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
+    col[i..i + 8].copy_from_slice(&v.to_array());
 }

@@ -10,7 +10,7 @@ use crate::real::V3;
 /// model has its own bounce pass; today there is one, ideal diffuse.
 #[derive(Clone, Debug, Default)]
 pub struct Bins {
-    /// Queue rows of paths that hit an ideal diffuse surface.
+    /// Queue rows (ascending) of paths that hit an ideal diffuse surface.
     pub diffuse: Vec<u32>,
 }
 
@@ -29,30 +29,26 @@ pub fn shade(
 ) -> u64 {
     bins.diffuse.clear();
     let mut invalid = 0;
-    let mut retire = |q: &PathQueue, i: usize| {
-        let pixel = (q.pixel[i] - tile_start) as usize;
-        if !accumulate(&mut sums[pixel], q.radiance_of(i)) {
-            invalid += 1;
-        }
-    };
     for i in 0..queue.len() {
         let tri = queue.hit[i];
-        if tri == MISS {
-            retire(queue, i);
-            continue;
-        }
-        let n = world.normals[tri as usize];
-        let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
-        if d.dot(V3::new(n[0], n[1], n[2])) < 0.0 {
-            let e = world.emission[world.material_of[tri as usize] as usize];
-            for (c, e) in e.iter().enumerate() {
-                queue.radiance[c][i] += queue.beta[c][i] * e;
+        if tri != MISS {
+            let n = world.normals[tri as usize];
+            let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
+            if d.dot(V3::new(n[0], n[1], n[2])) < 0.0 {
+                let e = world.emission[world.material_of[tri as usize] as usize];
+                for (c, e) in e.iter().enumerate() {
+                    queue.radiance[c][i] += queue.beta[c][i] * e;
+                }
+            }
+            if !last {
+                bins.diffuse.push(i as u32);
+                continue;
             }
         }
-        if last {
-            retire(queue, i);
-        } else {
-            bins.diffuse.push(i as u32);
+        // Retire: the path's radiance is one sample of its pixel.
+        let pixel = (queue.pixel[i] - tile_start) as usize;
+        if !accumulate(&mut sums[pixel], queue.radiance_of(i)) {
+            invalid += 1;
         }
     }
     invalid
