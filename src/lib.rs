@@ -10,6 +10,8 @@
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
+//! - [`session`]: long renders in passes: progress, time limits,
+//!   checkpoints and resume;
 //! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
 //!
 //! [`real`] holds the one numeric source shared by scalar and 8-wide code.
@@ -28,6 +30,7 @@ pub mod reference;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod session;
 pub mod stats;
 
 pub use error::{Error, Result};
