@@ -6,7 +6,7 @@
 //! - [`camera`]: camera rays, jittered over each pixel;
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
-//! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;

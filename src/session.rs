@@ -487,9 +487,12 @@ mod tests {
         assert_eq!(p.samples(), Some(1), "at least one pass is rendered");
     }
 
+    // Times below are binary fractions, so the arithmetic is exact.
+    const T: f64 = 1.0 / 64.0;
+
     #[test]
     fn passes_last_about_the_target() {
-        assert_eq!(plan(Some(0.01)).samples(), Some(50));
+        assert_eq!(plan(Some(T)).samples(), Some(32));
         assert_eq!(plan(Some(2.0)).samples(), Some(1), "never below 1 spp");
         assert_eq!(plan(Some(1e-6)).samples(), Some(1000), "never past the gap");
     }
@@ -497,13 +500,13 @@ mod tests {
     #[test]
     fn passes_end_when_a_checkpoint_is_due() {
         let p = PassPlan {
-            due: [Some(10.2), Some(11.0)],
-            ..plan(Some(0.01))
+            due: [Some(10.25), Some(11.0)],
+            ..plan(Some(T))
         };
-        assert_eq!(p.samples(), Some(20));
+        assert_eq!(p.samples(), Some(16));
         let overdue = PassPlan {
             due: [Some(9.0), None],
-            ..plan(Some(0.01))
+            ..plan(Some(T))
         };
         assert_eq!(overdue.samples(), Some(1));
     }
@@ -512,16 +515,17 @@ mod tests {
     fn time_limit_stops_when_the_next_pass_would_not_fit() {
         let p = |limit| PassPlan {
             limit: Some(limit),
-            ..plan(Some(0.01))
+            ..plan(Some(T))
         };
-        assert_eq!(p(20.0).samples(), Some(50));
-        assert_eq!(p(10.25).samples(), Some(25));
-        assert_eq!(p(10.015).samples(), Some(1));
-        assert_eq!(p(10.005).samples(), None);
+        assert_eq!(p(20.0).samples(), Some(32));
+        assert_eq!(p(10.25).samples(), Some(16));
+        assert_eq!(p(10.0 + 1.5 * T).samples(), Some(1));
+        assert_eq!(p(10.0 + 0.5 * T).samples(), None);
         assert_eq!(p(9.0).samples(), None);
     }
 
     #[test]
+    #[allow(clippy::single_range_in_vec_init)] // lists of sample ranges
     fn gaps() {
         assert_eq!(first_gap(&[], 8), Some(0..8));
         assert_eq!(first_gap(&[0..8], 8), None);
