@@ -21,7 +21,12 @@ use std::time::{Duration, Instant};
     name = "wavetrace",
     version,
     about,
-    args_conflicts_with_subcommands = true
+    args_conflicts_with_subcommands = true,
+    after_help = "Exit status: 0 when the image was written (all samples, or as many as \
+                  --time-limit allowed); 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
+                  143 (SIGTERM) when a signal stopped the render after its current pass, \
+                  the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
+                  leaving the last checkpoint as it was."
 )]
 pub struct Cli {
     /// What to do; `render` when omitted.

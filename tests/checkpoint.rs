@@ -516,3 +516,22 @@ fn impossible_long_render_settings_are_refused_before_any_work() {
         b"precious"
     );
 }
+
+#[test]
+fn a_finished_checkpoint_extends_to_more_samples() {
+    let dir = workdir("extend");
+    run_ok(
+        &dir,
+        &["--spp", "100", "--out", "a.pfm", "--checkpoint", "ck.wtacc"],
+    );
+    run_ok(
+        &dir,
+        &["--spp", "300", "--out", "a.pfm", "--resume", "ck.wtacc"],
+    );
+    run_ok(&dir, &["--spp", "300", "--out", "b.pfm"]);
+    assert_eq!(
+        std::fs::read(dir.join("a.pfm")).unwrap(),
+        std::fs::read(dir.join("b.pfm")).unwrap()
+    );
+    assert_eq!(spp_of(&dir.join("ck.wtacc")), 300);
+}
