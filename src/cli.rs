@@ -198,13 +198,14 @@ fn plan(args: RenderArgs) -> Result<Job> {
         ));
     }
     if let Some(path) = &checkpoint {
-        if path == &out {
+        if same_file(path, &out) {
             return Err(Error::Settings(format!(
                 "{}: the checkpoint cannot be the output image",
                 path.display()
             )));
         }
-        if args.resume.as_ref() != Some(path) && path.exists() {
+        let resumes_it = args.resume.as_ref().is_some_and(|r| same_file(r, path));
+        if !resumes_it && path.exists() {
             return Err(Error::Settings(format!(
                 "{}: the checkpoint file exists and may hold another render's work; \
                  continue it with --resume {0}, or remove it",
@@ -256,6 +257,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
     })
 }
 
+/// Whether two paths name the same file (compared as written when either
+/// does not exist yet).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
 fn render(args: RenderArgs) -> Result<ExitCode> {
     let load_start = Instant::now();
     let mut job = plan(args)?;
@@ -294,28 +304,36 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let mut checkpoints_saved = report.checkpoints_saved;
     let mut output = None;
 
-    if let Stop::Signal(_) = report.stop {
-        // Save the work first; the partial image (if any) is a courtesy.
+    // The checkpoint is saved first, and both it and the image are tried
+    // even if the other fails, so a full disk loses as little as possible.
+    let t = Instant::now();
+    let saved = session.save_checkpoint(film);
+    checkpoint_seconds += t.elapsed().as_secs_f64();
+    let image = match report.stop {
+        // Stopped by a signal: no final image, only the partial one, brought
+        // up to the checkpoint.
+        Stop::Signal(_) => job.session.partial_image.clone().map(|p| (p, false)),
+        Stop::Complete | Stop::TimeLimit => Some((job.out.clone(), true)),
+    };
+    let written = image.map(|(path, is_final)| {
         let t = Instant::now();
-        session.save_checkpoint(film)?;
-        checkpoint_seconds += t.elapsed().as_secs_f64();
-        checkpoints_saved += job.session.checkpoint.is_some() as u32;
-        if let Some(path) = &job.session.partial_image {
-            let t = Instant::now();
-            write_image(path, film.width, film.height, &film.to_rgb())?;
-            stages.partial_images += t.elapsed().as_secs_f64();
-            output = Some(path.display().to_string());
+        let r = write_image(&path, film.width, film.height, &film.to_rgb());
+        let secs = t.elapsed().as_secs_f64();
+        if is_final {
+            stages.output = secs;
+        } else {
+            stages.partial_images += secs;
         }
-    } else {
-        let t = Instant::now();
-        write_image(&job.out, film.width, film.height, &film.to_rgb())?;
-        stages.output = t.elapsed().as_secs_f64();
-        output = Some(job.out.display().to_string());
-        let t = Instant::now();
-        session.save_checkpoint(film)?;
-        checkpoint_seconds += t.elapsed().as_secs_f64();
-        checkpoints_saved += job.session.checkpoint.is_some() as u32;
+        output = r.is_ok().then(|| path.display().to_string());
+        r
+    });
+    if let Some(Err(e)) = written {
+        if let Err(c) = saved {
+            eprintln!("error: {c}");
+        }
+        return Err(e);
     }
+    checkpoints_saved += saved? as u32;
     stages.checkpoint = checkpoint_seconds;
 
     let counters = report.counters;

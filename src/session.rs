@@ -220,8 +220,8 @@ impl<'a> Session<'a> {
 
     /// Render what `film` is missing of samples `0..spp`, until done, out
     /// of time, or interrupted. Checkpoints and partial images are written
-    /// as they fall due; a checkpoint that cannot be written is reported
-    /// as a warning and tried again at the next interval. The final
+    /// as they fall due; one that cannot be written is reported as a
+    /// warning and tried again at the next interval. The final
     /// checkpoint and image are left to the caller
     /// ([`save_checkpoint`](Self::save_checkpoint)).
     pub fn run(&mut self, mut film: Film, interrupt: &Interrupt) -> Result<SessionReport> {
@@ -292,7 +292,7 @@ impl<'a> Session<'a> {
             {
                 let t = Instant::now();
                 match self.save_checkpoint(&film) {
-                    Ok(()) => report.checkpoints_saved += 1,
+                    Ok(saved) => report.checkpoints_saved += saved as u32,
                     Err(e) => bar.suspend(|| {
                         eprintln!("warning: checkpoint not saved (will try again): {e}")
                     }),
@@ -304,8 +304,12 @@ impl<'a> Session<'a> {
                 && now >= due
             {
                 let t = Instant::now();
-                write_image(path, film.width, film.height, &film.to_rgb())?;
-                report.partial_images += 1;
+                match write_image(path, film.width, film.height, &film.to_rgb()) {
+                    Ok(()) => report.partial_images += 1,
+                    Err(e) => bar.suspend(|| {
+                        eprintln!("warning: partial image not written (will try again): {e}")
+                    }),
+                }
                 report.partial_seconds += t.elapsed().as_secs_f64();
                 next_partial = Some(start.elapsed() + o.partial_every);
             }
@@ -318,18 +322,19 @@ impl<'a> Session<'a> {
     }
 
     /// Save `film` to the checkpoint file (atomically), unless there is no
-    /// checkpoint file or it already holds exactly these samples.
-    pub fn save_checkpoint(&mut self, film: &Film) -> Result<()> {
+    /// checkpoint file or it already holds exactly these samples. Returns
+    /// whether a file was written.
+    pub fn save_checkpoint(&mut self, film: &Film) -> Result<bool> {
         let Some(path) = &self.options.checkpoint else {
-            return Ok(());
+            return Ok(false);
         };
         let spp = film.samples_per_pixel();
         if self.saved_spp == Some(spp) && path.exists() {
-            return Ok(());
+            return Ok(false);
         }
         film.save(path, self.settings_hash)?;
         self.saved_spp = Some(spp);
-        Ok(())
+        Ok(true)
     }
 }
 
