@@ -233,17 +233,18 @@ fn plan(args: RenderArgs) -> Result<Job> {
         })?;
     }
 
-    let session = SessionOptions {
+    let mut session = SessionOptions {
         time_limit: args.time_limit,
         checkpoint,
         checkpoint_every: args
             .checkpoint_every
             .unwrap_or(crate::session::DEFAULT_CHECKPOINT_EVERY),
-        partial_image: args.write_partial.map(|_| out.clone()),
-        partial_every: args.write_partial.unwrap_or(Duration::MAX),
-        progress: false,
         ..SessionOptions::default()
     };
+    if let Some(every) = args.write_partial {
+        session.partial_image = Some(out.clone());
+        session.partial_every = every;
+    }
     Ok(Job {
         scene,
         settings,

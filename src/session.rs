@@ -298,7 +298,7 @@ impl<'a> Session<'a> {
                     }),
                 }
                 report.checkpoint_seconds += t.elapsed().as_secs_f64();
-                next_checkpoint = Some(start.elapsed() + o.checkpoint_every);
+                next_checkpoint = Some(start.elapsed().saturating_add(o.checkpoint_every));
             }
             if let (Some(due), Some(path)) = (next_partial, &o.partial_image)
                 && now >= due
@@ -311,7 +311,7 @@ impl<'a> Session<'a> {
                     }),
                 }
                 report.partial_seconds += t.elapsed().as_secs_f64();
-                next_partial = Some(start.elapsed() + o.partial_every);
+                next_partial = Some(start.elapsed().saturating_add(o.partial_every));
             }
             update_progress(&bar, &report, done, spp, per_sample, o.time_limit, start);
         };
