@@ -6,12 +6,14 @@
 //! - [`camera`]: camera rays, jittered over each pixel;
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
-//! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (generate → intersect →
 //!   shade → bounce), the default;
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
+//! - [`session`]: long renders in passes: progress, time limits,
+//!   checkpoints and resume;
 //! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
 //!
 //! [`real`] holds the one numeric source shared by scalar and 8-wide code.
@@ -30,6 +32,7 @@ pub mod reference;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod session;
 pub mod stats;
 pub mod wavefront;
 

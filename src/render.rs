@@ -133,6 +133,23 @@ pub struct StageSeconds {
     pub bounce: f64,
 }
 
+impl StageSeconds {
+    /// The stages by name, for the stats file; empty when nothing was
+    /// timed (the reference engine has no stages).
+    pub fn by_name(&self) -> std::collections::BTreeMap<&'static str, f64> {
+        let all = [
+            ("generate", self.generate),
+            ("intersect", self.intersect),
+            ("shade", self.shade),
+            ("bounce", self.bounce),
+        ];
+        if all.iter().all(|(_, s)| *s == 0.0) {
+            return Default::default();
+        }
+        all.into_iter().collect()
+    }
+}
+
 impl std::ops::AddAssign for StageSeconds {
     fn add_assign(&mut self, o: Self) {
         self.generate += o.generate;

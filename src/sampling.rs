@@ -46,7 +46,7 @@ pub fn splitmix64(mut z: u64) -> u64 {
 /// In the local frame with `n` as the y axis: `cos θ = X1`,
 /// `sin θ = sqrt(1 - X1²)`, `φ = 2π·X2`,
 /// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`. The frame around `n` is
-/// Scratchapixel's (the report's reference [3]): a tangent `nt` orthogonal
+/// Scratchapixel's (the report's reference \[3\]): a tangent `nt` orthogonal
 /// to `n` built from its two largest components, and `nb = n × nt`.
 #[inline(always)]
 pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
