@@ -193,6 +193,8 @@ pub struct Renderer {
     scene: Scene,
     pool: rayon::ThreadPool,
     engine: EngineState,
+    /// Wavefront queues, one per worker thread (uncontended locks).
+    scratch: Vec<std::sync::Mutex<Scratch>>,
 }
 
 enum EngineState {
@@ -218,7 +220,14 @@ impl Renderer {
                 EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth))
             }
         };
+        let scratch = match settings.engine {
+            Engine::Wavefront => (0..settings.threads)
+                .map(|_| std::sync::Mutex::new(Scratch::new(settings.batch_size)))
+                .collect(),
+            Engine::Reference => Vec::new(),
+        };
         Ok(Self {
+            scratch,
             settings: settings.clone(),
             scene: scene.clone(),
             pool,
@@ -274,23 +283,23 @@ impl Renderer {
                 film.sums
                     .par_chunks_mut(tile)
                     .enumerate()
-                    .map_init(
-                        || Scratch::new(s.batch_size),
-                        |scratch, (i, sums)| {
-                            let start = (i * tile) as u32;
-                            let pixels = start..start + sums.len() as u32;
-                            engine.render_tile(
-                                scratch,
-                                &camera,
-                                s.width,
-                                s.seed,
-                                pixels,
-                                range.clone(),
-                                s.batch_size,
-                                sums,
-                            )
-                        },
-                    )
+                    .map(|(i, sums)| {
+                        // Each worker thread reuses its own queues.
+                        let worker = rayon::current_thread_index().unwrap_or(0);
+                        let mut scratch = self.scratch[worker].lock().expect("scratch lock");
+                        let start = (i * tile) as u32;
+                        let pixels = start..start + sums.len() as u32;
+                        engine.render_tile(
+                            &mut scratch,
+                            &camera,
+                            s.width,
+                            s.seed,
+                            pixels,
+                            range.clone(),
+                            s.batch_size,
+                            sums,
+                        )
+                    })
                     .reduce(Counters::default, sum_counters)
             }
         });

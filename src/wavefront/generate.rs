@@ -16,15 +16,14 @@ pub fn generate(
     pixels: std::ops::Range<u32>,
     samples: std::ops::Range<u32>,
 ) {
-    let mut row = 0;
-    for pixel in pixels {
+    let n = pixels.len() * samples.len();
+    queue.set_len(n);
+    let paths = pixels.flat_map(|p| samples.clone().map(move |s| (p, s)));
+    let rows = queue.rows_mut(n);
+    for (row, (pixel, sample)) in rows.zip(paths) {
         let (x, y) = (pixel % width, pixel / width);
-        for sample in samples.clone() {
-            let mut rng = PathRng::new(seed, pixel, sample);
-            let (o, d) = camera.jittered_ray(&mut rng, x, y);
-            queue.set_camera_ray(row, pixel, rng, o.to_array(), d.to_array());
-            row += 1;
-        }
+        let mut rng = PathRng::new(seed, pixel, sample);
+        let (o, d) = camera.jittered_ray(&mut rng, x, y);
+        row.set_camera_ray(pixel, rng, o.to_array(), d.to_array());
     }
-    queue.set_len(row);
 }

@@ -37,14 +37,14 @@ use std::time::Instant;
 pub struct World {
     /// Triangles in 8-wide packs, in index order.
     pub packs: Vec<Triangle8>,
-    /// Front-side unit normal of each triangle.
-    pub normals: Vec<[f32; 3]>,
+    /// Front-side unit normal of each triangle: x, y, z columns.
+    pub normals: [Vec<f32>; 3],
     /// Material index of each triangle.
     pub material_of: Vec<u32>,
     /// Emitted radiance of each material.
     pub emission: Vec<[f32; 3]>,
-    /// `reflectance / π` of each material.
-    pub brdf: Vec<[f32; 3]>,
+    /// `reflectance / π` of each triangle's material: R, G, B columns.
+    pub brdf: [Vec<f32>; 3],
     /// Smallest hit distance (see [`Scene::ray_epsilon`]).
     pub epsilon: f32,
 }
@@ -55,22 +55,19 @@ impl World {
         let edges: Vec<TriangleEdges> = scene.triangles.iter().map(TriangleEdges::from).collect();
         Self {
             packs: Triangle8::pack_all(&edges),
-            normals: scene
-                .triangles
-                .iter()
-                .map(|t| t.normal.to_array())
-                .collect(),
+            normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
             material_of: scene.triangles.iter().map(|t| t.material).collect(),
             emission: scene
                 .materials
                 .iter()
                 .map(|m| m.emission.to_array())
                 .collect(),
-            brdf: scene
-                .materials
-                .iter()
-                .map(|m| (m.reflectance / PI).to_array())
-                .collect(),
+            brdf: [0, 1, 2].map(|c| {
+                let brdf = |t: &crate::scene::Triangle| {
+                    scene.materials[t.material as usize].reflectance / PI
+                };
+                scene.triangles.iter().map(|t| brdf(t)[c]).collect()
+            }),
             epsilon: scene.ray_epsilon(),
         }
     }

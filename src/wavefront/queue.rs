@@ -72,32 +72,36 @@ impl PathQueue {
         self.len = len;
     }
 
-    /// Write a new path in row `i`: a ray with throughput 1 and no
-    /// radiance yet.
-    #[inline]
-    pub fn set_camera_ray(&mut self, i: usize, pixel: u32, rng: PathRng, o: [f32; 3], d: [f32; 3]) {
-        self.pixel[i] = pixel;
-        self.rng[i] = rng;
-        for c in 0..3 {
-            self.o[c][i] = o[c];
-            self.d[c][i] = d[c];
-            self.beta[c][i] = 1.0;
-            self.radiance[c][i] = 0.0;
+    /// Mutable views of rows `0..n` of the columns a new path sets.
+    pub fn rows_mut(&mut self, n: usize) -> impl Iterator<Item = NewPath<'_>> {
+        let [ox, oy, oz] = &mut self.o;
+        let [dx, dy, dz] = &mut self.d;
+        let [br, bg, bb] = &mut self.beta;
+        let [lr, lg, lb] = &mut self.radiance;
+        fn f(c: &mut [f32], n: usize) -> std::slice::IterMut<'_, f32> {
+            c[..n].iter_mut()
         }
-    }
-
-    /// Copy path `from` into row `to` (the stage outputs `t`, `hit` too).
-    #[inline]
-    pub fn move_row(&mut self, from: usize, to: usize) {
-        self.pixel[to] = self.pixel[from];
-        self.rng[to] = self.rng[from].clone();
-        for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
-            for col in cols.iter_mut() {
-                col[to] = col[from];
-            }
-        }
-        self.t[to] = self.t[from];
-        self.hit[to] = self.hit[from];
+        // Zipped column iterators: no per-row bounds checks.
+        self.pixel[..n]
+            .iter_mut()
+            .zip(self.rng[..n].iter_mut())
+            .zip(f(ox, n).zip(f(oy, n)).zip(f(oz, n)))
+            .zip(f(dx, n).zip(f(dy, n)).zip(f(dz, n)))
+            .zip(f(br, n).zip(f(bg, n)).zip(f(bb, n)))
+            .zip(f(lr, n).zip(f(lg, n)).zip(f(lb, n)))
+            .map(
+                |(
+                    ((((pixel, rng), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
+                    ((lr, lg), lb),
+                )| NewPath {
+                    pixel,
+                    rng,
+                    o: [ox, oy, oz],
+                    d: [dx, dy, dz],
+                    beta: [br, bg, bb],
+                    radiance: [lr, lg, lb],
+                },
+            )
     }
 
     /// The radiance gathered by path `i`.
@@ -122,4 +126,29 @@ pub fn load8(col: &[f32], i: usize) -> f32x8 {
 #[inline(always)]
 pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
     col[i..i + 8].copy_from_slice(&v.to_array());
+}
+
+/// One row of a [`PathQueue`], as the generate stage writes it.
+pub struct NewPath<'a> {
+    pixel: &'a mut u32,
+    rng: &'a mut PathRng,
+    o: [&'a mut f32; 3],
+    d: [&'a mut f32; 3],
+    beta: [&'a mut f32; 3],
+    radiance: [&'a mut f32; 3],
+}
+
+impl NewPath<'_> {
+    /// A camera ray: throughput 1, no radiance yet.
+    #[inline(always)]
+    pub fn set_camera_ray(self, pixel: u32, rng: PathRng, o: [f32; 3], d: [f32; 3]) {
+        *self.pixel = pixel;
+        *self.rng = rng;
+        for c in 0..3 {
+            *self.o[c] = o[c];
+            *self.d[c] = d[c];
+            *self.beta[c] = 1.0;
+            *self.radiance[c] = 0.0;
+        }
+    }
 }

@@ -29,16 +29,28 @@ pub fn shade(
 ) -> u64 {
     bins.diffuse.clear();
     let mut invalid = 0;
-    for i in 0..queue.len() {
-        let tri = queue.hit[i];
+    let n = queue.len();
+    // Columns cut to the live rows: the loop below needs no bounds checks.
+    let hit = &queue.hit[..n];
+    let pixel = &queue.pixel[..n];
+    let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
+    let beta = queue.beta.each_ref().map(|c| &c[..n]);
+    let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
+    for i in 0..n {
+        let tri = hit[i];
         if tri != MISS {
-            let n = world.normals[tri as usize];
-            let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
-            if d.dot(V3::new(n[0], n[1], n[2])) < 0.0 {
+            let t = tri as usize;
+            let normal = V3::new(
+                world.normals[0][t],
+                world.normals[1][t],
+                world.normals[2][t],
+            );
+            let d = V3::new(dx[i], dy[i], dz[i]);
+            if d.dot(normal) < 0.0 {
                 let e = world.emission[world.material_of[tri as usize] as usize];
-                for (c, e) in e.iter().enumerate() {
-                    queue.radiance[c][i] += queue.beta[c][i] * e;
-                }
+                lr[i] += beta[0][i] * e[0];
+                lg[i] += beta[1][i] * e[1];
+                lb[i] += beta[2][i] * e[2];
             }
             if !last {
                 bins.diffuse.push(i as u32);
@@ -46,8 +58,8 @@ pub fn shade(
             }
         }
         // Retire: the path's radiance is one sample of its pixel.
-        let pixel = (queue.pixel[i] - tile_start) as usize;
-        if !accumulate(&mut sums[pixel], queue.radiance_of(i)) {
+        let sum = &mut sums[(pixel[i] - tile_start) as usize];
+        if !accumulate(sum, glam::Vec3::new(lr[i], lg[i], lb[i])) {
             invalid += 1;
         }
     }
