@@ -319,17 +319,33 @@ impl Triangle8 {
 
     /// Test one ray (broadcast to all lanes) against the eight triangles,
     /// keeping in `best` each lane's smallest `(t, index)`.
+    ///
+    /// `IN_INDEX_ORDER` says the caller tests packs in increasing index
+    /// order (a brute-force scan): then a lane's earlier hit always has the
+    /// lower index, an equal `t` never wins, and the tie-break compares are
+    /// skipped. Any other order (a hierarchy) must pass `false`.
     #[inline(always)]
-    pub fn intersect(&self, o: &Vec3x8, d: &Vec3x8, t_min: f32x8, best: &mut LaneHits) {
+    pub fn intersect<const IN_INDEX_ORDER: bool>(
+        &self,
+        o: &Vec3x8,
+        d: &Vec3x8,
+        t_min: f32x8,
+        best: &mut LaneHits,
+    ) {
         let (inside, t) = moller_trumbore(*o, *d, &self.tri, t_min);
-        let idx_lt: f32x8 = bytemuck::cast(self.index.simd_lt(best.index));
-        let closer = inside & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt));
+        let closer = if IN_INDEX_ORDER {
+            inside & t.simd_lt(best.t)
+        } else {
+            let idx_lt: f32x8 = bytemuck::cast(self.index.simd_lt(best.index));
+            inside & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt))
+        };
         best.t = closer.select(t, best.t);
         best.index = bytemuck::cast::<f32x8, i32x8>(closer).select(self.index, best.index);
     }
 }
 
-/// Closest hit of one ray against packed triangles, 8 lanes at a time.
+/// Closest hit of one ray against packed triangles, 8 lanes at a time, the
+/// packs in increasing index order (as [`Triangle8::pack_all`] makes them).
 /// Returns the same triangle and the same `t` as
 /// [`closest_hit_brute_force`], bit for bit.
 pub fn closest_hit_packs(
@@ -343,7 +359,7 @@ pub fn closest_hit_packs(
     let t_min8 = f32x8::splat(t_min);
     let mut best = LaneHits::new(t_max);
     for p in packs {
-        p.intersect(&o8, &d8, t_min8, &mut best);
+        p.intersect::<true>(&o8, &d8, t_min8, &mut best);
     }
     best.closest()
 }

@@ -4,11 +4,13 @@
 use glam::Vec3;
 use wavetrace::film::Film;
 use wavetrace::geometry::{
-    Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
+    Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
 };
+use wavetrace::real::V3;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::sampling::PathRng;
 use wavetrace::scene::Scene;
+use wide::f32x8;
 
 fn render(scene: &Scene, f: impl FnOnce(&mut RenderSettings)) -> Film {
     let mut s = RenderSettings::for_scene(scene);
@@ -230,6 +232,21 @@ fn simd_intersector_equals_scalar_on_a_million_rays() {
             let simd = closest_hit_packs(&packs, o, d, t_min, f32::INFINITY);
             let bits = |h: Option<Hit>| h.map(|h| (h.triangle, h.t.to_bits()));
             assert_eq!(bits(scalar), bits(simd), "ray {o} -> {d}");
+            // Packs in any order (as a hierarchy visits them) with the
+            // general tie-break: still the same hit.
+            let any_order = {
+                let (o8, d8) = (V3::splat(o), V3::splat(d));
+                let mut best = LaneHits::new(f32::INFINITY);
+                for p in packs.iter().rev() {
+                    p.intersect::<false>(&o8, &d8, f32x8::splat(t_min), &mut best);
+                }
+                best.closest()
+            };
+            assert_eq!(
+                bits(scalar),
+                bits(any_order),
+                "reversed packs: ray {o} -> {d}"
+            );
             count += 1;
             hits += scalar.is_some() as u32;
         }

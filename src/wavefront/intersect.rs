@@ -24,7 +24,7 @@ pub fn intersect(queue: &mut PathQueue, world: &World) {
         let d = V3::new(f32x8::splat(*dx), f32x8::splat(*dy), f32x8::splat(*dz));
         let mut best = LaneHits::new(f32::INFINITY);
         for pack in &world.packs {
-            pack.intersect(&o, &d, t_min, &mut best);
+            pack.intersect::<true>(&o, &d, t_min, &mut best);
         }
         match best.closest() {
             Some(h) => (*t, *hit) = (h.t, h.triangle),
