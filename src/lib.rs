@@ -6,6 +6,8 @@
 //! - [`camera`]: camera rays, jittered over each pixel;
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
+//! - [`bvh`]: the 8-wide bounding volume hierarchy over the triangles;
+//! - [`mesh`]: generated meshes (spheres, terrain) for big scenes;
 //! - [`reference`]: the scalar recursive reference tracer (the oracle);
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
@@ -16,11 +18,13 @@
 
 #![warn(missing_docs)]
 
+pub mod bvh;
 pub mod camera;
 pub mod cli;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod mesh;
 pub mod output;
 pub mod profile;
 pub mod real;

@@ -1,0 +1,257 @@
+//! BVH benchmarks: build speed and memory, and incoherent closest-hit
+//! throughput against the same rays through the `obvhs` crate.
+//!
+//! The scene at each size is the DH2323 Cornell box (32 triangles) with a
+//! geodesic sphere of about N triangles on the short block — the geometry of
+//! `scenes/sphere-1m.toml` — made by the same generator the scene files and
+//! the tests use. The rays are incoherent: origins uniform in the box,
+//! directions uniform on the sphere, all traced on one thread, so the
+//! throughput is per core.
+//!
+//! ```sh
+//! cargo bench --bench bvh                         # 1k, 10k, 100k, 1M
+//! WAVETRACE_BENCH_10M=1 cargo bench --bench bvh   # adds 10M (needs ~4 GB)
+//! ```
+//!
+//! Before the criterion groups, a summary prints, per size: build time,
+//! M triangles/s, bytes/triangle, M rays/s for wavetrace and for obvhs, and
+//! their ratio (medians of several runs).
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use glam::{Vec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::cwbvh::{CwBvh, builder::build_cwbvh_from_tris};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle as OTriangle;
+use rand_core::Rng;
+use rand_pcg::Pcg64Mcg;
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+use wavetrace::bvh::Bvh;
+use wavetrace::geometry::TriangleEdges;
+use wavetrace::mesh::{cornell_box, geodesic_sphere};
+
+const RAYS: usize = 1 << 16;
+const EPS: f32 = 1e-4;
+
+fn sizes() -> Vec<usize> {
+    let mut s = vec![1_000, 10_000, 100_000, 1_000_000];
+    if std::env::var_os("WAVETRACE_BENCH_10M").is_some() {
+        s.push(10_000_000);
+    }
+    s
+}
+
+fn label(n: usize) -> String {
+    match n {
+        n if n >= 1_000_000 => format!("{}M", n / 1_000_000),
+        n => format!("{}k", n / 1_000),
+    }
+}
+
+/// The Cornell box with a sphere of about `n` triangles (minus the box's 32).
+fn scene(n: usize) -> Vec<[Vec3; 3]> {
+    let mut t = cornell_box();
+    let sphere = geodesic_sphere(Vec3::new(0.33, 0.105, -0.39), 0.3, n.saturating_sub(t.len()));
+    t.extend(sphere);
+    t
+}
+
+fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
+    tris.iter()
+        .map(|v| TriangleEdges {
+            v0: v[0],
+            e1: v[1] - v[0],
+            e2: v[2] - v[0],
+        })
+        .collect()
+}
+
+fn rays() -> Vec<(Vec3, Vec3)> {
+    let mut g = Pcg64Mcg::new(0x5eed);
+    let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0;
+    (0..RAYS)
+        .map(|_| {
+            let o = Vec3::new(f(), f(), f()) * 0.999;
+            let d = loop {
+                let v = Vec3::new(f(), f(), f());
+                let l = v.length_squared();
+                if l > 1e-6 && l <= 1.0 {
+                    break v / l.sqrt();
+                }
+            };
+            (o, d)
+        })
+        .collect()
+}
+
+struct Obvhs {
+    bvh: CwBvh,
+    tris: Vec<OTriangle>,
+}
+
+impl Obvhs {
+    fn build(tris: &[[Vec3; 3]]) -> Self {
+        let t: Vec<OTriangle> = tris
+            .iter()
+            .map(|v| OTriangle {
+                v0: v[0].into(),
+                v1: v[1].into(),
+                v2: v[2].into(),
+            })
+            .collect();
+        let bvh = build_cwbvh_from_tris(&t, BvhBuildParams::slow_build(), &mut Duration::default());
+        // Triangles in leaf order, as obvhs's own examples do.
+        let tris = bvh.primitive_indices.iter().map(|&i| t[i as usize]).collect();
+        Self { bvh, tris }
+    }
+
+    /// Sum of hit distances (so nothing is optimised away).
+    fn trace(&self, rays: &[(Vec3, Vec3)]) -> f64 {
+        let mut sum = 0.0f64;
+        for &(o, d) in rays {
+            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), EPS, f32::INFINITY);
+            let mut hit = RayHit::none();
+            if self
+                .bvh
+                .ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+            {
+                sum += hit.t as f64;
+            }
+        }
+        sum
+    }
+}
+
+fn trace(bvh: &Bvh, rays: &[(Vec3, Vec3)]) -> f64 {
+    let mut sum = 0.0f64;
+    for &(o, d) in rays {
+        if let Some(h) = bvh.closest_hit(o, d, EPS, f32::INFINITY) {
+            sum += h.t as f64;
+        }
+    }
+    sum
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// This thread's CPU time in seconds: on a shared machine, time spent
+/// descheduled does not count (wall time would).
+fn thread_cpu_seconds() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec for the duration of the call.
+    let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(r, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// Median CPU seconds (this thread) of `runs` calls of `f`.
+fn time(runs: usize, mut f: impl FnMut()) -> f64 {
+    median(
+        (0..runs)
+            .map(|_| {
+                let t = thread_cpu_seconds();
+                f();
+                thread_cpu_seconds() - t
+            })
+            .collect(),
+    )
+}
+
+/// Median wall-clock seconds of `runs` calls of `f`.
+fn wall(runs: usize, mut f: impl FnMut()) -> f64 {
+    median(
+        (0..runs)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+/// The summary table: build, memory, rays/s for both, ratio.
+fn summary() {
+    let rays = rays();
+    eprintln!(
+        "\n{:>6} {:>9} {:>10} {:>9} {:>8} {:>13} {:>13} {:>7}",
+        "tris", "build ms", "M tris/s", "B/tri", "nodes", "wt Mrays/s", "obvhs Mrays/s", "ratio"
+    );
+    for n in sizes() {
+        let tris = scene(n);
+        let e = edges(&tris);
+        let build = wall(3, || {
+            black_box(Bvh::build(&e));
+        });
+        let bvh = Bvh::build(&e);
+        let ob = Obvhs::build(&tris);
+        // Both must agree on which rays hit and where (obvhs uses another
+        // triangle test, so compare t loosely).
+        let (a, b) = (trace(&bvh, &rays), ob.trace(&rays));
+        assert!((a - b).abs() <= 1e-3 * a.abs(), "wavetrace {a} vs obvhs {b}");
+        let wt = time(5, || {
+            black_box(trace(&bvh, &rays));
+        });
+        let ot = time(5, || {
+            black_box(ob.trace(&rays));
+        });
+        eprintln!(
+            "{:>6} {:>9.1} {:>10.2} {:>9.1} {:>8} {:>13.2} {:>13.2} {:>7.2}",
+            label(n),
+            build * 1e3,
+            tris.len() as f64 / build / 1e6,
+            bvh.bytes() as f64 / tris.len() as f64,
+            bvh.node_count(),
+            RAYS as f64 / wt / 1e6,
+            RAYS as f64 / ot / 1e6,
+            ot / wt,
+        );
+    }
+    eprintln!(
+        "(build: wall clock, all cores; rays: {RAYS} rays on one thread, per CPU-second of that \
+         thread; ratio = obvhs time / wavetrace time)\n"
+    );
+}
+
+fn benches(c: &mut Criterion) {
+    if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
+        summary();
+    }
+    let rays = rays();
+    let mut build = c.benchmark_group("build");
+    build.sample_size(10);
+    for n in sizes() {
+        let e = edges(&scene(n));
+        build.throughput(Throughput::Elements(e.len() as u64));
+        build.bench_with_input(BenchmarkId::from_parameter(label(n)), &e, |b, e| {
+            b.iter(|| Bvh::build(e))
+        });
+    }
+    build.finish();
+
+    let mut g = c.benchmark_group("incoherent");
+    g.throughput(Throughput::Elements(RAYS as u64));
+    g.sample_size(10);
+    for n in sizes() {
+        let tris = scene(n);
+        let bvh = Bvh::build(&edges(&tris));
+        g.bench_function(BenchmarkId::new("wavetrace", label(n)), |b| {
+            b.iter(|| trace(&bvh, &rays))
+        });
+        let ob = Obvhs::build(&tris);
+        g.bench_function(BenchmarkId::new("obvhs", label(n)), |b| {
+            b.iter(|| ob.trace(&rays))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(bvh_benches, benches);
+criterion_main!(bvh_benches);

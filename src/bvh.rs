@@ -1,0 +1,771 @@
+//! A bounding volume hierarchy with 8-wide nodes and 8-wide triangle leaves.
+//!
+//! # Layout
+//!
+//! Every inner node ([`Node8`]) holds the boxes of up to eight children in
+//! structure-of-arrays form, so one ray is tested against all eight boxes
+//! with a handful of AVX2 instructions. Leaves are runs of 1 to
+//! [`MAX_LEAF_PACKS`] [`Triangle8`] packs: the very SoA packs and the very
+//! Möller–Trumbore kernel of [`closest_hit_packs`](crate::geometry::closest_hit_packs).
+//!
+//! # Build
+//!
+//! Top-down with the surface area heuristic over 16 bins per axis. Each wide
+//! node is made by splitting its largest child (by surface area) until it has
+//! eight, or until the heuristic says a leaf is cheaper. A leaf's cost counts
+//! whole packs (`ceil(n / 8)`), so the heuristic fills packs. Subtrees are built
+//! in parallel with rayon, and binning of large nodes is parallel too. Past
+//! [`SAH_DEPTH_LIMIT`] wide levels (reached only by pathological inputs) the
+//! build switches to median splits, which bounds the depth and so the
+//! traversal stack.
+//!
+//! # Exactness
+//!
+//! The closest hit is the lexicographic minimum of `(t, triangle index)`
+//! ([`crate::geometry`]): a leaf's lanes keep their own minimum and the answer
+//! is reduced at the end, so the order in which leaves are visited does not
+//! matter. A child is skipped only when its box starts strictly beyond the
+//! best `t` so far (ties are visited, the lower index may be there). Boxes are
+//! padded by a small absolute margin (`2^-15` of the scene's largest
+//! coordinate) so that rounding in the box test or in Möller–Trumbore cannot
+//! cull a triangle that the kernel would report. The result is the same
+//! triangle and the same `t` bits as [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force).
+//! (A ray that grazes a triangle almost in its plane gets a `t` whose rounding
+//! error grows as 1/sin of the angle; were that error ever larger than the
+//! padding, the two could differ. The tests fire millions of random rays,
+//! grazing ones included, without finding one.)
+
+use crate::geometry::{Hit, LaneHits, Triangle8, TriangleEdges};
+use crate::real::{V3, Vec3x8};
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+use std::time::Instant;
+use wide::{f32x8, i32x8};
+
+/// Most packs (of 8 triangles) in one leaf.
+pub const MAX_LEAF_PACKS: usize = 4;
+/// Wide levels built with the surface area heuristic before the build falls
+/// back to median splits (bounds the depth for pathological inputs).
+pub const SAH_DEPTH_LIMIT: u32 = 16;
+
+const LANES: usize = 8;
+const MAX_LEAF_TRIS: usize = MAX_LEAF_PACKS * LANES;
+const BINS: usize = 16;
+/// Relative cost of testing one node's eight boxes.
+const COST_NODE: f32 = 1.0;
+/// Relative cost of testing one pack of eight triangles.
+const COST_PACK: f32 = 1.5;
+/// Nodes with at least this many triangles build their children in parallel.
+const PAR_BUILD: usize = 4096;
+/// Nodes with at least this many triangles bin in parallel.
+const PAR_BIN: usize = 1 << 16;
+/// Relative slack on the best `t` when culling boxes.
+const T_SLACK: f32 = 1.0 / 1024.0;
+/// Traversal stack entries: 7 per level, for the deepest possible tree
+/// (`SAH_DEPTH_LIMIT` levels, then median splits of 8 for up to 2^32
+/// triangles, then a leaf).
+const STACK: usize = 7 * (SAH_DEPTH_LIMIT as usize + 12);
+
+/// A child reference: `EMPTY`, a leaf (`LEAF | (packs - 1) << 29 | start`),
+/// or an inner node's index.
+const EMPTY: u32 = u32::MAX;
+const LEAF: u32 = 1 << 31;
+const LEAF_SHIFT: u32 = 29;
+const LEAF_START_MASK: u32 = (1 << LEAF_SHIFT) - 1;
+
+/// Eight child boxes (SoA) and eight child references.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct Node8 {
+    /// Box minimum corners, per axis, per child (`+inf` for empty slots).
+    lo: [f32x8; 3],
+    /// Box maximum corners (`-inf` for empty slots).
+    hi: [f32x8; 3],
+    /// Child references.
+    child: [u32; 8],
+}
+
+/// A ray prepared for box and triangle tests.
+struct RayPrep {
+    o8: Vec3x8,
+    d8: Vec3x8,
+    t_min8: f32x8,
+    t_min: f32x8,
+    inv: [f32x8; 3],
+    o_inv: [f32x8; 3],
+    neg: [bool; 3],
+}
+
+impl RayPrep {
+    #[inline(always)]
+    fn new(o: Vec3, d: Vec3, t_min: f32) -> Self {
+        // A zero direction component would make 0 * inf = NaN in the slab
+        // test; a tiny one keeps every product finite or infinite.
+        let safe = |x: f32| {
+            if x.abs() < 1e-20 {
+                1e-20f32.copysign(x)
+            } else {
+                x
+            }
+        };
+        let inv = [1.0 / safe(d.x), 1.0 / safe(d.y), 1.0 / safe(d.z)];
+        let oa = o.to_array();
+        Self {
+            o8: V3::splat(o),
+            d8: V3::splat(d),
+            t_min8: f32x8::splat(t_min),
+            t_min: f32x8::splat(t_min),
+            inv: inv.map(f32x8::splat),
+            o_inv: std::array::from_fn(|a| f32x8::splat(oa[a] * inv[a])),
+            neg: inv.map(|i| i < 0.0),
+        }
+    }
+}
+
+impl Node8 {
+    /// Which children the ray enters before `t_max`, and where it enters them.
+    #[inline(always)]
+    fn intersect(&self, r: &RayPrep, t_max: f32) -> (u32, f32x8) {
+        // The box test has no scalar twin to agree with, so it may use fused
+        // multiply-subtract: `b·(1/d) - o·(1/d)`. The boxes' padding covers
+        // its rounding.
+        let slab = |a: usize| {
+            let (near, far) = if r.neg[a] {
+                (self.hi[a], self.lo[a])
+            } else {
+                (self.lo[a], self.hi[a])
+            };
+            (
+                near.mul_sub(r.inv[a], r.o_inv[a]),
+                far.mul_sub(r.inv[a], r.o_inv[a]),
+            )
+        };
+        let (nx, fx) = slab(0);
+        let (ny, fy) = slab(1);
+        let (nz, fz) = slab(2);
+        let t_near = nx.fast_max(ny).fast_max(nz.fast_max(r.t_min));
+        let t_far = fx.fast_min(fy).fast_min(fz.fast_min(f32x8::splat(t_max)));
+        (t_near.simd_le(t_far).to_bitmask(), t_near)
+    }
+}
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: Vec3A,
+    hi: Vec3A,
+}
+
+impl Aabb {
+    const EMPTY: Self = Self {
+        lo: Vec3A::INFINITY,
+        hi: Vec3A::NEG_INFINITY,
+    };
+
+    #[inline(always)]
+    fn grow(&mut self, o: &Aabb) {
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+    }
+
+    #[inline(always)]
+    fn grow_point(&mut self, p: Vec3A) {
+        self.lo = self.lo.min(p);
+        self.hi = self.hi.max(p);
+    }
+
+    /// Half the surface area (0 for an empty box).
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let e = (self.hi - self.lo).max(Vec3A::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+}
+
+/// A triangle's box and index while building.
+#[derive(Clone, Copy, Debug)]
+struct Prim {
+    b: Aabb,
+    index: u32,
+}
+
+impl Prim {
+    /// Twice the box's centre.
+    #[inline(always)]
+    fn centroid2(&self) -> Vec3A {
+        self.b.lo + self.b.hi
+    }
+}
+
+/// A contiguous run of prims with its box and centroid box.
+#[derive(Clone, Copy, Debug)]
+struct Range {
+    start: usize,
+    len: usize,
+    b: Aabb,
+    cb: Aabb,
+    leaf: bool,
+}
+
+/// The tree as built, before it is flattened.
+enum BuildNode {
+    Leaf { start: usize, len: usize },
+    Inner(Vec<(Aabb, BuildNode)>),
+}
+
+#[derive(Clone, Copy)]
+struct Bin {
+    b: Aabb,
+    n: u32,
+}
+
+type Bins = [[Bin; BINS]; 3];
+
+const EMPTY_BINS: Bins = [[Bin {
+    b: Aabb::EMPTY,
+    n: 0,
+}; BINS]; 3];
+
+fn packs(n: usize) -> f32 {
+    n.div_ceil(LANES) as f32
+}
+
+/// The bin mapping of a centroid box: `bin = (c - lo) * scale`, per axis.
+#[derive(Clone, Copy)]
+struct Binning {
+    lo: Vec3A,
+    scale: Vec3A,
+}
+
+impl Binning {
+    fn new(cb: &Aabb) -> Self {
+        let ext = cb.hi - cb.lo;
+        let s = |e: f32| {
+            if e > 0.0 && e.is_finite() {
+                BINS as f32 * 0.999_99 / e
+            } else {
+                0.0
+            }
+        };
+        Self {
+            lo: cb.lo,
+            scale: Vec3A::new(s(ext.x), s(ext.y), s(ext.z)),
+        }
+    }
+
+    #[inline(always)]
+    fn bins(&self, c: Vec3A) -> [usize; 3] {
+        let b = ((c - self.lo) * self.scale).min(Vec3A::splat((BINS - 1) as f32));
+        // `as usize` saturates negatives and NaN to 0.
+        [b.x as usize, b.y as usize, b.z as usize]
+    }
+}
+
+fn bin_prims(prims: &[Prim], binning: &Binning) -> Bins {
+    let mut bins = EMPTY_BINS;
+    for p in prims {
+        let k = binning.bins(p.centroid2());
+        for a in 0..3 {
+            let bin = &mut bins[a][k[a]];
+            bin.b.grow(&p.b);
+            bin.n += 1;
+        }
+    }
+    bins
+}
+
+fn merge_bins(mut a: Bins, b: Bins) -> Bins {
+    for (x, y) in a.iter_mut().zip(b.iter()) {
+        for (p, q) in x.iter_mut().zip(y.iter()) {
+            p.b.grow(&q.b);
+            p.n += q.n;
+        }
+    }
+    a
+}
+
+/// The best SAH split of `prims`: (axis, last bin on the left, cost of the
+/// two sides as `area · packs`).
+fn find_sah_split(prims: &[Prim], cb: &Aabb) -> Option<(usize, usize, f32)> {
+    let binning = Binning::new(cb);
+    if binning.scale == Vec3A::ZERO {
+        return None;
+    }
+    let bins = if prims.len() >= PAR_BIN {
+        prims
+            .par_chunks(PAR_BIN / 4)
+            .map(|c| bin_prims(c, &binning))
+            .reduce(|| EMPTY_BINS, merge_bins)
+    } else {
+        bin_prims(prims, &binning)
+    };
+    let mut best: Option<(usize, usize, f32)> = None;
+    for (a, bins) in bins.iter().enumerate() {
+        if binning.scale[a] == 0.0 {
+            continue;
+        }
+        // Right sides, from the right: right_cost[i] covers bins i+1.. .
+        let mut right_cost = [0.0f32; BINS];
+        let mut right_n = [0usize; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
+        for i in (1..BINS).rev() {
+            acc.grow(&bins[i].b);
+            n += bins[i].n as usize;
+            right_cost[i - 1] = acc.half_area() * packs(n);
+            right_n[i - 1] = n;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
+        for i in 0..BINS - 1 {
+            acc.grow(&bins[i].b);
+            n += bins[i].n as usize;
+            if n == 0 || right_n[i] == 0 {
+                continue;
+            }
+            let cost = acc.half_area() * packs(n) + right_cost[i];
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((a, i, cost));
+            }
+        }
+    }
+    best
+}
+
+/// Split `r` (whose prims are `prims`) in two, or `None` if it should be a
+/// leaf. `median` forces balanced median splits.
+fn split(prims: &mut [Prim], r: &Range, median: bool) -> Option<(Range, Range)> {
+    let n = prims.len();
+    if n <= 1 {
+        return None;
+    }
+    if !median {
+        if let Some((axis, bin, cost)) = find_sah_split(prims, &r.cb) {
+            let area = r.b.half_area();
+            let leaf_cost = COST_PACK * area * packs(n);
+            let split_cost = COST_NODE * area + COST_PACK * cost;
+            if n <= MAX_LEAF_TRIS && split_cost >= leaf_cost {
+                return None;
+            }
+            let binning = Binning::new(&r.cb);
+            let mid = partition(prims, |p| binning.bins(p.centroid2())[axis] <= bin);
+            return Some(sides(prims, r, mid));
+        }
+        if n <= MAX_LEAF_TRIS {
+            return None;
+        }
+    } else if n <= MAX_LEAF_TRIS {
+        return None;
+    }
+    // All centroids in one point, or too deep: split at the median of the
+    // widest centroid axis.
+    let ext = r.cb.hi - r.cb.lo;
+    let axis = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
+    let mid = n / 2;
+    prims.select_nth_unstable_by(mid, |a, b| {
+        a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
+    });
+    Some(sides(prims, r, mid))
+}
+
+/// In-place partition: prims with `left(p)` first; returns their count.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+    let (mut i, mut j) = (0, prims.len());
+    while i < j {
+        if left(&prims[i]) {
+            i += 1;
+        } else {
+            j -= 1;
+            prims.swap(i, j);
+        }
+    }
+    i
+}
+
+/// The two ranges of `r` split at `mid`, with their boxes.
+fn sides(prims: &[Prim], r: &Range, mid: usize) -> (Range, Range) {
+    let side = |start: usize, s: &[Prim]| {
+        let (mut b, mut cb) = (Aabb::EMPTY, Aabb::EMPTY);
+        for p in s {
+            b.grow(&p.b);
+            cb.grow_point(p.centroid2());
+        }
+        Range {
+            start,
+            len: s.len(),
+            b,
+            cb,
+            leaf: false,
+        }
+    };
+    let (l, rr) = prims.split_at(mid);
+    if prims.len() >= PAR_BIN {
+        rayon::join(|| side(r.start, l), || side(r.start + mid, rr))
+    } else {
+        (side(r.start, l), side(r.start + mid, rr))
+    }
+}
+
+/// Build the subtree over `prims`, which start at `base` in the full list.
+fn build_node(prims: &mut [Prim], base: usize, whole: Range, depth: u32) -> BuildNode {
+    let median = depth >= SAH_DEPTH_LIMIT;
+    let mut kids = vec![Range { start: 0, ..whole }];
+    while kids.len() < LANES {
+        // Split the open child with the largest box (most triangles when
+        // splitting at medians).
+        let pick = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| !k.leaf)
+            .max_by(|(_, a), (_, b)| {
+                if median {
+                    a.len.cmp(&b.len)
+                } else {
+                    a.b.half_area().total_cmp(&b.b.half_area())
+                }
+            })
+            .map(|(i, _)| i);
+        let Some(i) = pick else { break };
+        let k = kids[i];
+        match split(&mut prims[k.start..k.start + k.len], &k, median) {
+            Some((l, r)) => {
+                kids[i] = l;
+                kids.push(r);
+            }
+            None => kids[i].leaf = true,
+        }
+    }
+    if kids.len() == 1 && kids[0].leaf {
+        return BuildNode::Leaf {
+            start: base,
+            len: prims.len(),
+        };
+    }
+    kids.sort_by_key(|k| k.start);
+    // Disjoint slices for the children, in order.
+    let mut slices = Vec::with_capacity(kids.len());
+    let mut rest = prims;
+    for k in &kids {
+        let (s, r) = rest.split_at_mut(k.len);
+        slices.push((s, *k));
+        rest = r;
+    }
+    let child = |(s, k): (&mut [Prim], Range)| {
+        let node = if k.leaf {
+            BuildNode::Leaf {
+                start: base + k.start,
+                len: k.len,
+            }
+        } else {
+            build_node(s, base + k.start, Range { start: 0, ..k }, depth + 1)
+        };
+        (k.b, node)
+    };
+    let children = if whole.len >= PAR_BUILD {
+        slices.into_par_iter().map(child).collect()
+    } else {
+        slices.into_iter().map(child).collect()
+    };
+    BuildNode::Inner(children)
+}
+
+/// An 8-wide bounding volume hierarchy over a triangle list, answering
+/// closest-hit queries exactly as brute force does.
+#[derive(Clone, Debug)]
+pub struct Bvh {
+    nodes: Vec<Node8>,
+    packs: Vec<Triangle8>,
+    /// Triangles with a non-finite coordinate: kept out of the tree (they
+    /// have no box) and tested against every ray, as brute force would.
+    unbounded: Vec<Triangle8>,
+    root: u32,
+    triangles: usize,
+    build_seconds: f64,
+}
+
+impl Bvh {
+    /// Build the hierarchy over `tris`; triangle `i` is reported as index
+    /// `i` in hits. Uses the current rayon thread pool.
+    ///
+    /// # Panics
+    ///
+    /// With 2^29 or more triangles (the leaf encoding's limit; 40 GiB of
+    /// packs).
+    pub fn build(tris: &[TriangleEdges]) -> Bvh {
+        let started = Instant::now();
+        assert!(
+            tris.len() < (1 << LEAF_SHIFT),
+            "a Bvh holds fewer than 2^29 triangles"
+        );
+        let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
+        let mut prims: Vec<Prim> = tris
+            .par_iter()
+            .enumerate()
+            .filter(|(_, t)| finite(t))
+            .map(|(i, t)| {
+                let v0 = Vec3A::from(t.v0);
+                let (v1, v2) = (v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2));
+                let finite_box = Aabb {
+                    lo: v0.min(v1).min(v2),
+                    hi: v0.max(v1).max(v2),
+                };
+                Prim {
+                    b: finite_box,
+                    index: i as u32,
+                }
+            })
+            .collect();
+        let unbounded_tris: Vec<(u32, TriangleEdges)> = tris
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| !finite(t))
+            .map(|(i, t)| (i as u32, *t))
+            .collect();
+        let unbounded = unbounded_tris.chunks(LANES).map(Triangle8::pack).collect();
+
+        let (b, cb) = prims
+            .par_chunks(PAR_BIN / 4)
+            .map(|c| {
+                let (mut b, mut cb) = (Aabb::EMPTY, Aabb::EMPTY);
+                for p in c {
+                    b.grow(&p.b);
+                    cb.grow_point(p.centroid2());
+                }
+                (b, cb)
+            })
+            .reduce(
+                || (Aabb::EMPTY, Aabb::EMPTY),
+                |mut x, y| {
+                    x.0.grow(&y.0);
+                    x.1.grow(&y.1);
+                    x
+                },
+            );
+        // Padding: covers rounding in the box test and in Möller–Trumbore.
+        let extent = if prims.is_empty() {
+            1.0
+        } else {
+            b.lo.abs().max(b.hi.abs()).max_element().max(1e-30)
+        };
+        let pad = Vec3A::splat(extent * (1.0 / 32768.0));
+
+        let tree = if prims.is_empty() {
+            None
+        } else {
+            let n = prims.len();
+            let whole = Range {
+                start: 0,
+                len: n,
+                b,
+                cb,
+                leaf: false,
+            };
+            Some(build_node(&mut prims, 0, whole, 0))
+        };
+
+        // Flatten: nodes depth-first, leaves' packs in prim order.
+        let mut nodes = Vec::new();
+        let mut leaves: Vec<(usize, usize)> = Vec::new();
+        let mut pack_count = 0usize;
+        let root = match &tree {
+            None => EMPTY,
+            Some(t) => flatten(t, pad, &mut nodes, &mut leaves, &mut pack_count),
+        };
+        let packs: Vec<Triangle8> = leaves
+            .par_iter()
+            .flat_map_iter(|&(start, len)| {
+                prims[start..start + len]
+                    .chunks(LANES)
+                    .map(|c| pack(tris, c))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        debug_assert_eq!(packs.len(), pack_count);
+        Bvh {
+            nodes,
+            packs,
+            unbounded,
+            root,
+            triangles: tris.len(),
+            build_seconds: started.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The closest hit of the ray `o + t·d` with `t_min < t < t_max`: the
+    /// smallest `(t, triangle index)`, bit for bit what
+    /// [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force)
+    /// returns.
+    #[inline]
+    pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+        let r = RayPrep::new(o, d, t_min);
+        let mut best = LaneHits::new(t_max);
+        let mut best_t = t_max;
+        if !self.unbounded.is_empty() {
+            for p in &self.unbounded {
+                p.intersect(&r.o8, &r.d8, r.t_min8, &mut best);
+            }
+            best_t = cull_bound(lane_min(best.t));
+        }
+        let mut stack = [(0u32, 0f32); STACK];
+        let mut sp = 0usize;
+        let mut cur = self.root;
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                let (mask, t_near) = node.intersect(&r, best_t);
+                if mask != 0 {
+                    if mask & (mask - 1) == 0 {
+                        cur = node.child[mask.trailing_zeros() as usize];
+                        continue;
+                    }
+                    // Visit the nearest child now, push the others
+                    // farthest first. Keys: t_near's bits (order only).
+                    let tn = t_near.to_array();
+                    let mut keys = [0u64; LANES];
+                    let mut k = 0;
+                    let mut m = mask;
+                    while m != 0 {
+                        let lane = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        keys[k] = ((tn[lane].to_bits() as u64) << 32) | lane as u64;
+                        k += 1;
+                    }
+                    let keys = &mut keys[..k];
+                    keys.sort_unstable();
+                    for &key in keys[1..].iter().rev() {
+                        let lane = (key & 7) as usize;
+                        stack[sp] = (node.child[lane], tn[lane]);
+                        sp += 1;
+                    }
+                    cur = node.child[(keys[0] & 7) as usize];
+                    continue;
+                }
+            } else if cur != EMPTY {
+                let start = (cur & LEAF_START_MASK) as usize;
+                let count = ((cur & !LEAF) >> LEAF_SHIFT) as usize + 1;
+                for p in &self.packs[start..start + count] {
+                    p.intersect(&r.o8, &r.d8, r.t_min8, &mut best);
+                }
+                best_t = cull_bound(lane_min(best.t));
+            }
+            // Pop the next child that may still hold a closer hit.
+            loop {
+                if sp == 0 {
+                    return best.closest().filter(|h| h.t < t_max);
+                }
+                sp -= 1;
+                let (c, t) = stack[sp];
+                if t <= best_t {
+                    cur = c;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Number of triangles the hierarchy was built over.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
+    }
+
+    /// Number of inner (8-wide) nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Number of 8-triangle packs in the leaves.
+    pub fn pack_count(&self) -> usize {
+        self.packs.len() + self.unbounded.len()
+    }
+
+    /// Memory held by the nodes and the triangle packs, in bytes.
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * size_of::<Node8>() + self.pack_count() * size_of::<Triangle8>()
+    }
+
+    /// Wall-clock seconds [`Bvh::build`] took.
+    pub fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+}
+
+/// The distance past which a box is skipped, given the best hit's `t`:
+/// a little beyond it, for Möller–Trumbore's rounding of `t`.
+#[inline(always)]
+fn cull_bound(t: f32) -> f32 {
+    t + t.abs() * T_SLACK
+}
+
+#[inline(always)]
+fn lane_min(t: f32x8) -> f32 {
+    t.to_array().into_iter().fold(f32::INFINITY, f32::min)
+}
+
+/// Pack up to eight prims' triangles.
+fn pack(tris: &[TriangleEdges], prims: &[Prim]) -> Triangle8 {
+    let lane = |f: &dyn Fn(&TriangleEdges) -> f32| {
+        f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
+            prims.get(l).map_or(0.0, |p| f(&tris[p.index as usize]))
+        }))
+    };
+    let v3 = |g: &dyn Fn(&TriangleEdges) -> Vec3| {
+        V3::new(lane(&|t| g(t).x), lane(&|t| g(t).y), lane(&|t| g(t).z))
+    };
+    Triangle8 {
+        v0: v3(&|t| t.v0),
+        e1: v3(&|t| t.e1),
+        e2: v3(&|t| t.e2),
+        index: i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
+            prims.get(l).map_or(-1, |p| p.index as i32)
+        })),
+    }
+}
+
+/// Append `t`'s nodes to `nodes` (depth first) and its leaves to `leaves`;
+/// returns its child reference.
+fn flatten(
+    t: &BuildNode,
+    pad: Vec3A,
+    nodes: &mut Vec<Node8>,
+    leaves: &mut Vec<(usize, usize)>,
+    pack_count: &mut usize,
+) -> u32 {
+    match t {
+        BuildNode::Leaf { start, len } => {
+            let n = len.div_ceil(LANES);
+            debug_assert!((1..=MAX_LEAF_PACKS).contains(&n));
+            let r = LEAF | (((n - 1) as u32) << LEAF_SHIFT) | *pack_count as u32;
+            leaves.push((*start, *len));
+            *pack_count += n;
+            r
+        }
+        BuildNode::Inner(children) => {
+            let me = nodes.len();
+            nodes.push(Node8 {
+                lo: [f32x8::splat(f32::INFINITY); 3],
+                hi: [f32x8::splat(f32::NEG_INFINITY); 3],
+                child: [EMPTY; 8],
+            });
+            let mut lo = [[f32::INFINITY; 8]; 3];
+            let mut hi = [[f32::NEG_INFINITY; 8]; 3];
+            let mut child = [EMPTY; 8];
+            for (i, (b, c)) in children.iter().enumerate() {
+                for a in 0..3 {
+                    lo[a][i] = b.lo[a] - pad[a];
+                    hi[a][i] = b.hi[a] + pad[a];
+                }
+                child[i] = flatten(c, pad, nodes, leaves, pack_count);
+            }
+            nodes[me] = Node8 {
+                lo: lo.map(f32x8::from),
+                hi: hi.map(f32x8::from),
+                child,
+            };
+            me as u32
+        }
+    }
+}
