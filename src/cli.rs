@@ -153,6 +153,15 @@ fn render(args: RenderArgs) -> Result<()> {
         s.engine.name()
     );
     let renderer = Renderer::new(&job.scene, s)?;
+    if let Some(b) = renderer.bvh() {
+        eprintln!(
+            "bvh: {} triangles, {} nodes, {:.1} MiB, built in {:.3} s",
+            b.triangle_count(),
+            b.node_count(),
+            b.bytes() as f64 / (1 << 20) as f64,
+            b.build_seconds()
+        );
+    }
     let (film, counters, elapsed) = renderer.render();
     let seconds = elapsed.as_secs_f64();
     write_image(&job.out, film.width, film.height, &film.to_rgb())?;
@@ -173,6 +182,10 @@ fn render(args: RenderArgs) -> Result<()> {
         rays_per_second: counters.rays as f64 / seconds,
         paths_per_second: counters.paths as f64 / seconds,
         invalid_samples: film.invalid_samples,
+        triangles: job.scene.triangles.len(),
+        bvh_nodes: renderer.bvh().map_or(0, |b| b.node_count()),
+        build_seconds: renderer.bvh().map_or(0.0, |b| b.build_seconds()),
+        bvh_bytes: renderer.bvh().map_or(0, |b| b.bytes()),
         output: Some(job.out.display().to_string()),
     };
     if film.invalid_samples > 0 {

@@ -149,9 +149,9 @@ impl Renderer {
                 Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
             })?;
         let engine = match settings.engine {
-            Engine::Reference => {
-                EngineState::Reference(ReferenceTracer::new(scene, settings.max_depth))
-            }
+            Engine::Reference => EngineState::Reference(
+                pool.install(|| ReferenceTracer::new(scene, settings.max_depth)),
+            ),
         };
         Ok(Self {
             settings: settings.clone(),
@@ -159,6 +159,13 @@ impl Renderer {
             pool,
             engine,
         })
+    }
+
+    /// The bounding volume hierarchy the engine traces against.
+    pub fn bvh(&self) -> Option<&crate::bvh::Bvh> {
+        match &self.engine {
+            EngineState::Reference(t) => t.bvh().map(|b| &**b),
+        }
     }
 
     /// The settings this renderer was made for.

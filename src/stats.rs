@@ -35,6 +35,14 @@ pub struct RenderStats {
     pub paths_per_second: f64,
     /// Samples refused as NaN, infinite or negative (should be 0).
     pub invalid_samples: u64,
+    /// Triangles in the scene.
+    pub triangles: usize,
+    /// Inner nodes of the bounding volume hierarchy (0 without one).
+    pub bvh_nodes: usize,
+    /// Wall-clock seconds spent building the hierarchy.
+    pub build_seconds: f64,
+    /// Memory held by the hierarchy's nodes and triangle packs, in bytes.
+    pub bvh_bytes: usize,
     /// The image written, if any.
     pub output: Option<String>,
 }
