@@ -347,8 +347,9 @@ fn split(prims: &mut [Prim], r: &Range, median: bool) -> Option<(Range, Range)> 
                 return None;
             }
             let binning = Binning::new(&r.cb);
-            let mid = partition(prims, |p| binning.bins(p.centroid2())[axis] <= bin);
-            return Some(sides(prims, r, mid));
+            return Some(partition(prims, r, |p| {
+                binning.bins(p.centroid2())[axis] <= bin
+            }));
         }
         if n <= MAX_LEAF_TRIS {
             return None;
@@ -373,18 +374,41 @@ fn split(prims: &mut [Prim], r: &Range, median: bool) -> Option<(Range, Range)> 
     Some(sides(prims, r, mid))
 }
 
-/// In-place partition: prims with `left(p)` first; returns their count.
-fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+/// In-place partition of `r`'s prims: those with `left(p)` first. Returns
+/// the two sides with their boxes and centroid boxes, computed on the way.
+fn partition(prims: &mut [Prim], r: &Range, left: impl Fn(&Prim) -> bool) -> (Range, Range) {
+    let (mut lb, mut lcb, mut rb, mut rcb) = (Aabb::EMPTY, Aabb::EMPTY, Aabb::EMPTY, Aabb::EMPTY);
     let (mut i, mut j) = (0, prims.len());
     while i < j {
-        if left(&prims[i]) {
+        let p = prims[i];
+        if left(&p) {
+            lb.grow(&p.b);
+            lcb.grow_point(p.centroid2());
             i += 1;
         } else {
+            // `p` is on the right for good; what comes to `i` is tested next.
             j -= 1;
+            rb.grow(&p.b);
+            rcb.grow_point(p.centroid2());
             prims.swap(i, j);
         }
     }
-    i
+    (
+        Range {
+            start: r.start,
+            len: i,
+            b: lb,
+            cb: lcb,
+            leaf: false,
+        },
+        Range {
+            start: r.start + i,
+            len: prims.len() - i,
+            b: rb,
+            cb: rcb,
+            leaf: false,
+        },
+    )
 }
 
 /// The two ranges of `r` split at `mid`, with their boxes.
@@ -404,11 +428,7 @@ fn sides(prims: &[Prim], r: &Range, mid: usize) -> (Range, Range) {
         }
     };
     let (l, rr) = prims.split_at(mid);
-    if prims.len() >= PAR_BIN {
-        rayon::join(|| side(r.start, l), || side(r.start + mid, rr))
-    } else {
-        (side(r.start, l), side(r.start + mid, rr))
-    }
+    (side(r.start, l), side(r.start + mid, rr))
 }
 
 /// Build the subtree over `prims`, which start at `base` in the full list.
@@ -576,16 +596,20 @@ impl Bvh {
             None => EMPTY,
             Some(t) => flatten(t, pad, &mut nodes, &mut leaves, &mut pack_count),
         };
-        let packs: Vec<Pack> = leaves
-            .par_iter()
-            .flat_map_iter(|&(start, len)| {
-                prims[start..start + len]
-                    .chunks(LANES)
-                    .map(|c| Pack(pack(tris, c)))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        debug_assert_eq!(packs.len(), pack_count);
+        // Each leaf fills its own run of packs, in parallel.
+        let mut packs = vec![Pack(pack(tris, &[])); pack_count];
+        let mut jobs = Vec::with_capacity(leaves.len());
+        let mut rest = packs.as_mut_slice();
+        for &(start, len) in &leaves {
+            let (mine, r) = rest.split_at_mut(len.div_ceil(LANES));
+            jobs.push((mine, &prims[start..start + len]));
+            rest = r;
+        }
+        jobs.into_par_iter().with_min_len(256).for_each(|(out, prims)| {
+            for (o, c) in out.iter_mut().zip(prims.chunks(LANES)) {
+                *o = Pack(pack(tris, c));
+            }
+        });
         Bvh {
             nodes,
             packs,
