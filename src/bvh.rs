@@ -626,9 +626,11 @@ impl Bvh {
     /// returns.
     #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+        // The same walk as `Traversal::step`, with its state in locals
+        // (measured ~5% faster than stepping a `Traversal`).
         let r = RayPrep::new(o, d, t_min);
         let mut best = LaneHits::new(t_max);
-        let mut best_t = t_max;
+        let mut best_t = cull_bound(t_max);
         if !self.unbounded.is_empty() {
             for p in &self.unbounded {
                 p.intersect(&r.o8, &r.d8, r.t_min8, &mut best);
@@ -642,37 +644,11 @@ impl Bvh {
                 let node = &self.nodes[cur as usize];
                 let (mask, t_near) = node.intersect(&r, best_t);
                 if mask != 0 {
-                    if mask & (mask - 1) == 0 {
-                        cur = node.child[mask.trailing_zeros() as usize];
-                        continue;
-                    }
-                    // Visit the nearest child now, push the others
-                    // farthest first. Keys: t_near's bits (order only).
-                    let tn = t_near.to_array();
-                    let mut keys = [0u64; LANES];
-                    let mut k = 0;
-                    let mut m = mask;
-                    while m != 0 {
-                        let lane = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        keys[k] = ((tn[lane].to_bits() as u64) << 32) | lane as u64;
-                        k += 1;
-                    }
-                    let keys = &mut keys[..k];
-                    keys.sort_unstable();
-                    for &key in keys[1..].iter().rev() {
-                        let lane = (key & 7) as usize;
-                        stack.push(node.child[lane], tn[lane]);
-                    }
-                    cur = node.child[(keys[0] & 7) as usize];
+                    cur = descend(node, mask, t_near, &mut stack);
                     continue;
                 }
             } else if cur != EMPTY {
-                let start = (cur & LEAF_START_MASK) as usize;
-                let count = ((cur & !LEAF) >> LEAF_SHIFT) as usize + 1;
-                for Pack(p) in &self.packs[start..start + count] {
-                    p.intersect(&r.o8, &r.d8, r.t_min8, &mut best);
-                }
+                self.test_leaf(cur, &r, &mut best);
                 best_t = cull_bound(lane_min(best.t));
             }
             // Pop the next child that may still hold a closer hit.
@@ -683,6 +659,69 @@ impl Bvh {
                 if t <= best_t {
                     cur = c;
                     break;
+                }
+            }
+        }
+    }
+
+    /// Test the leaf `leaf` (a child reference) against the ray.
+    #[inline(always)]
+    fn test_leaf(&self, leaf: u32, r: &RayPrep, best: &mut LaneHits) {
+        let start = (leaf & LEAF_START_MASK) as usize;
+        let count = ((leaf & !LEAF) >> LEAF_SHIFT) as usize + 1;
+        for Pack(p) in &self.packs[start..start + count] {
+            p.intersect(&r.o8, &r.d8, r.t_min8, best);
+        }
+    }
+
+    /// The closest hits of many rays `(o, d)`, each exactly as
+    /// [`Bvh::closest_hit`] would give it, into `out` (same length).
+    ///
+    /// The rays are traced [`BATCH`] at a time, interleaved: each step of
+    /// one ray prefetches the node or leaf it will visit next, and the other
+    /// rays' steps run while it arrives from memory. On scenes much larger
+    /// than the caches this is several times faster than one ray at a time;
+    /// on small scenes it is about the same.
+    ///
+    /// # Panics
+    ///
+    /// If `out.len() != rays.len()`.
+    pub fn closest_hits(
+        &self,
+        rays: &[(Vec3, Vec3)],
+        t_min: f32,
+        t_max: f32,
+        out: &mut [Option<Hit>],
+    ) {
+        assert_eq!(rays.len(), out.len(), "one output per ray");
+        let mut next = 0usize;
+        let mut slots: [(usize, Option<Traversal>); BATCH] = std::array::from_fn(|_| (0, None));
+        let mut live = 0usize;
+        for slot in slots.iter_mut() {
+            if next < rays.len() {
+                let (o, d) = rays[next];
+                *slot = (next, Some(Traversal::new(self, o, d, t_min, t_max)));
+                next += 1;
+                live += 1;
+            }
+        }
+        while live > 0 {
+            for (index, slot) in slots.iter_mut() {
+                let Some(t) = slot else { continue };
+                if t.step(self) {
+                    t.prefetch(self);
+                    continue;
+                }
+                out[*index] = t.result();
+                if next < rays.len() {
+                    let (o, d) = rays[next];
+                    t.reset(self, o, d, t_min, t_max);
+                    t.prefetch(self);
+                    *index = next;
+                    next += 1;
+                } else {
+                    *slot = None;
+                    live -= 1;
                 }
             }
         }
@@ -724,6 +763,153 @@ fn cull_bound(t: f32) -> f32 {
 #[inline(always)]
 fn lane_min(t: f32x8) -> f32 {
     t.to_array().into_iter().fold(f32::INFINITY, f32::min)
+}
+
+/// Rays in flight in [`Bvh::closest_hits`].
+pub const BATCH: usize = 16;
+
+/// One ray's walk through the tree, a node or a leaf per [`Traversal::step`].
+struct Traversal {
+    r: RayPrep,
+    best: LaneHits,
+    /// Boxes entered beyond this are skipped ([`cull_bound`] of the best `t`).
+    best_t: f32,
+    t_max: f32,
+    stack: Stack,
+    /// The node or leaf to visit next.
+    cur: u32,
+}
+
+impl Traversal {
+    #[inline(always)]
+    fn new(bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Self {
+        let mut t = Self {
+            r: RayPrep::new(o, d, t_min),
+            best: LaneHits::new(t_max),
+            best_t: t_max,
+            t_max,
+            stack: Stack::new(),
+            cur: EMPTY,
+        };
+        t.reset(bvh, o, d, t_min, t_max);
+        t
+    }
+
+    /// Start over with another ray, reusing the stack's memory in place.
+    #[inline(always)]
+    fn reset(&mut self, bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, t_max: f32) {
+        let r = RayPrep::new(o, d, t_min);
+        let mut best = LaneHits::new(t_max);
+        let mut best_t = cull_bound(t_max);
+        if !bvh.unbounded.is_empty() {
+            for p in &bvh.unbounded {
+                p.intersect(&r.o8, &r.d8, r.t_min8, &mut best);
+            }
+            best_t = cull_bound(lane_min(best.t));
+        }
+        self.r = r;
+        self.best = best;
+        self.best_t = best_t;
+        self.t_max = t_max;
+        self.stack.len = 0;
+        self.cur = bvh.root;
+    }
+
+    /// Visit `cur` and choose the next; false when nothing is left.
+    #[inline(always)]
+    fn step(&mut self, bvh: &Bvh) -> bool {
+        let cur = self.cur;
+        if cur & LEAF == 0 {
+            let node = &bvh.nodes[cur as usize];
+            let (mask, t_near) = node.intersect(&self.r, self.best_t);
+            if mask != 0 {
+                self.cur = descend(node, mask, t_near, &mut self.stack);
+                return true;
+            }
+        } else if cur != EMPTY {
+            bvh.test_leaf(cur, &self.r, &mut self.best);
+            self.best_t = cull_bound(lane_min(self.best.t));
+        }
+        // Pop the next child that may still hold a closer hit.
+        while let Some((c, t)) = self.stack.pop() {
+            if t <= self.best_t {
+                self.cur = c;
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Ask the memory system for what the next step reads.
+    #[inline(always)]
+    fn prefetch(&self, bvh: &Bvh) {
+        let cur = self.cur;
+        if cur & LEAF == 0 {
+            if let Some(n) = bvh.nodes.get(cur as usize) {
+                prefetch_lines(n, size_of::<Node8>() / 64);
+            }
+        } else if cur != EMPTY {
+            let start = (cur & LEAF_START_MASK) as usize;
+            let count = ((cur & !LEAF) >> LEAF_SHIFT) as usize + 1;
+            if let Some(p) = bvh.packs.get(start) {
+                prefetch_lines(p, count * size_of::<Pack>() / 64);
+            }
+        }
+    }
+
+    /// The closest hit found.
+    #[inline(always)]
+    fn result(&self) -> Option<Hit> {
+        self.best.closest().filter(|h| h.t < self.t_max)
+    }
+}
+
+/// The child of `node` to visit next, of those in `mask` (not empty): the
+/// nearest; the others go on the stack, farthest first, with the distance
+/// at which the ray enters them.
+#[inline(always)]
+fn descend(node: &Node8, mask: u32, t_near: f32x8, stack: &mut Stack) -> u32 {
+    if mask & (mask - 1) == 0 {
+        return node.child[mask.trailing_zeros() as usize];
+    }
+    // Sort keys: t_near's bits, then the lane (the order only matters for
+    // speed; t_near >= t_min, so for t_min >= 0 the bits sort as numbers).
+    let tn = t_near.to_array();
+    let mut keys = [0u64; LANES];
+    let mut k = 0;
+    let mut m = mask;
+    while m != 0 {
+        let lane = m.trailing_zeros() as usize;
+        m &= m - 1;
+        keys[k] = ((tn[lane].to_bits() as u64) << 32) | lane as u64;
+        k += 1;
+    }
+    let keys = &mut keys[..k];
+    keys.sort_unstable();
+    for &key in keys[1..].iter().rev() {
+        let lane = (key & 7) as usize;
+        stack.push(node.child[lane], tn[lane]);
+    }
+    node.child[(keys[0] & 7) as usize]
+}
+
+/// Prefetch `lines` cache lines from `p` on (into all cache levels).
+#[inline(always)]
+fn prefetch_lines<T>(p: &T, lines: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let base = (p as *const T).cast::<i8>();
+        for k in 0..lines {
+            // SAFETY: a prefetch is only a hint: it never faults and has no
+            // effect on program state, whatever the address (and these
+            // lines lie within the `T` at `p` and what follows it in the
+            // same Vec). Measured: 2-3x faster batches on 1M triangles.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(64 * k)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (p, lines);
 }
 
 /// A leaf pack on its own cache lines (a [`Triangle8`] is 320 bytes, five

@@ -100,6 +100,17 @@ fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usiz
         };
         one(o, d, t_min, t_max);
     }
+    // The batch query gives each ray's answer too.
+    let mut r2 = Rand::new(seed ^ 0xba7c);
+    let batch: Vec<(Vec3, Vec3)> = (0..rays.min(3000))
+        .map(|_| (r2.point_in(lo - grow, hi + grow), r2.dir()))
+        .collect();
+    let mut out = vec![None; batch.len()];
+    bvh.closest_hits(&batch, eps, f32::INFINITY, &mut out);
+    for (&(o, d), got) in batch.iter().zip(&out) {
+        let want = closest_hit_brute_force(tris, o, d, eps, f32::INFINITY);
+        assert_eq!(key(*got), key(want), "batch ray o={o:?} d={d:?}");
+    }
     for i in 0..surface {
         let t = &tris[r.below(tris.len())];
         let (mut u, mut v) = (r.f(), r.f());
