@@ -4,9 +4,20 @@
 //! The scene at each size is the DH2323 Cornell box (32 triangles) with a
 //! geodesic sphere of about N triangles on the short block — the geometry of
 //! `scenes/sphere-1m.toml` — made by the same generator the scene files and
-//! the tests use. The rays are incoherent: origins uniform in the box,
-//! directions uniform on the sphere, all traced on one thread, so the
-//! throughput is per core.
+//! the tests use. Two sets of incoherent rays, all traced on one thread (so
+//! the throughput is per core):
+//!
+//! - `box`: origins uniform in the box, directions uniform on the sphere —
+//!   what a path tracer's bounces in this scene look like (most end on the
+//!   walls);
+//! - `aimed`: origins uniform in the box, each aimed at a uniform point
+//!   inside the sphere — every ray ends on the big mesh, the worst case for
+//!   memory.
+//!
+//! Each set goes through `Bvh::closest_hit` one ray at a time (`single`),
+//! through `Bvh::closest_hits` (`batch`: 16 rays interleaved with prefetch),
+//! and through obvhs's compressed wide BVH (`slow_build` preset, its best
+//! quality) with its own triangle test.
 //!
 //! ```sh
 //! cargo bench --bench bvh                         # 1k, 10k, 100k, 1M
@@ -15,7 +26,10 @@
 //!
 //! Before the criterion groups, a summary prints, per size: build time,
 //! M triangles/s, bytes/triangle, M rays/s for wavetrace and for obvhs, and
-//! their ratio (medians of several runs).
+//! their ratio (medians of several runs, rays timed in this thread's CPU
+//! time so that other processes on a shared machine do not count), and the
+//! 32-triangle Cornell box through brute force, `closest_hit_packs` and the
+//! BVH. `WAVETRACE_BENCH_SUMMARY_ONLY=1` stops after the summary.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
@@ -28,7 +42,9 @@ use rand_pcg::Pcg64Mcg;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 use wavetrace::bvh::Bvh;
-use wavetrace::geometry::TriangleEdges;
+use wavetrace::geometry::{
+    Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
+};
 use wavetrace::mesh::{cornell_box, geodesic_sphere};
 
 const RAYS: usize = 1 << 16;
@@ -52,7 +68,7 @@ fn label(n: usize) -> String {
 /// The Cornell box with a sphere of about `n` triangles (minus the box's 32).
 fn scene(n: usize) -> Vec<[Vec3; 3]> {
     let mut t = cornell_box();
-    let sphere = geodesic_sphere(Vec3::new(0.33, 0.105, -0.39), 0.3, n.saturating_sub(t.len()));
+    let sphere = geodesic_sphere(SPHERE_CENTER, SPHERE_RADIUS, n.saturating_sub(t.len()));
     t.extend(sphere);
     t
 }
@@ -67,20 +83,31 @@ fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
         .collect()
 }
 
-fn rays() -> Vec<(Vec3, Vec3)> {
+const SPHERE_CENTER: Vec3 = Vec3::new(0.33, 0.105, -0.39);
+const SPHERE_RADIUS: f32 = 0.3;
+
+/// `aimed = false`: the `box` rays; `true`: the `aimed` rays.
+fn rays(aimed: bool) -> Vec<(Vec3, Vec3)> {
     let mut g = Pcg64Mcg::new(0x5eed);
+    // Uniform in [-1, 1).
     let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0;
     (0..RAYS)
         .map(|_| {
             let o = Vec3::new(f(), f(), f()) * 0.999;
-            let d = loop {
+            // Uniform in the unit ball.
+            let v = loop {
                 let v = Vec3::new(f(), f(), f());
                 let l = v.length_squared();
                 if l > 1e-6 && l <= 1.0 {
-                    break v / l.sqrt();
+                    break v;
                 }
             };
-            (o, d)
+            let d = if aimed {
+                SPHERE_CENTER + v * SPHERE_RADIUS - o
+            } else {
+                v
+            };
+            (o, d.normalize())
         })
         .collect()
 }
@@ -102,7 +129,11 @@ impl Obvhs {
             .collect();
         let bvh = build_cwbvh_from_tris(&t, BvhBuildParams::slow_build(), &mut Duration::default());
         // Triangles in leaf order, as obvhs's own examples do.
-        let tris = bvh.primitive_indices.iter().map(|&i| t[i as usize]).collect();
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| t[i as usize])
+            .collect();
         Self { bvh, tris }
     }
 
@@ -131,6 +162,11 @@ fn trace(bvh: &Bvh, rays: &[(Vec3, Vec3)]) -> f64 {
         }
     }
     sum
+}
+
+fn trace_batch(bvh: &Bvh, rays: &[(Vec3, Vec3)], out: &mut [Option<Hit>]) -> f64 {
+    bvh.closest_hits(rays, EPS, f32::INFINITY, out);
+    out.iter().flatten().map(|h| h.t as f64).sum()
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -177,12 +213,22 @@ fn wall(runs: usize, mut f: impl FnMut()) -> f64 {
     )
 }
 
-/// The summary table: build, memory, rays/s for both, ratio.
+/// The summary tables: build and memory; rays/s for both ray sets; Cornell.
 fn summary() {
-    let rays = rays();
+    let sets = [("box", rays(false)), ("aimed", rays(true))];
+    let mut out = vec![None; RAYS];
     eprintln!(
-        "\n{:>6} {:>9} {:>10} {:>9} {:>8} {:>13} {:>13} {:>7}",
-        "tris", "build ms", "M tris/s", "B/tri", "nodes", "wt Mrays/s", "obvhs Mrays/s", "ratio"
+        "\n{:>5} {:>8} {:>8} {:>6} {:>7} | {:>5} {:>7} {:>7} {:>7} {:>6}",
+        "tris",
+        "build ms",
+        "Mtris/s",
+        "B/tri",
+        "nodes",
+        "rays",
+        "single",
+        "batch",
+        "obvhs",
+        "ratio"
     );
     for n in sizes() {
         let tris = scene(n);
@@ -192,31 +238,75 @@ fn summary() {
         });
         let bvh = Bvh::build(&e);
         let ob = Obvhs::build(&tris);
-        // Both must agree on which rays hit and where (obvhs uses another
-        // triangle test, so compare t loosely).
-        let (a, b) = (trace(&bvh, &rays), ob.trace(&rays));
-        assert!((a - b).abs() <= 1e-3 * a.abs(), "wavetrace {a} vs obvhs {b}");
-        let wt = time(5, || {
-            black_box(trace(&bvh, &rays));
-        });
-        let ot = time(5, || {
-            black_box(ob.trace(&rays));
-        });
-        eprintln!(
-            "{:>6} {:>9.1} {:>10.2} {:>9.1} {:>8} {:>13.2} {:>13.2} {:>7.2}",
-            label(n),
-            build * 1e3,
-            tris.len() as f64 / build / 1e6,
-            bvh.bytes() as f64 / tris.len() as f64,
-            bvh.node_count(),
-            RAYS as f64 / wt / 1e6,
-            RAYS as f64 / ot / 1e6,
-            ot / wt,
-        );
+        for (k, (name, rays)) in sets.iter().enumerate() {
+            // Both find the same hits (obvhs's triangle test rounds
+            // differently, so compare the sum of t loosely).
+            let (a, b) = (trace(&bvh, rays), ob.trace(rays));
+            assert!(
+                (a - b).abs() <= 1e-3 * a.abs(),
+                "wavetrace {a} vs obvhs {b}"
+            );
+            let single = time(5, || {
+                black_box(trace(&bvh, rays));
+            });
+            let batch = time(5, || {
+                black_box(trace_batch(&bvh, rays, &mut out));
+            });
+            let obvhs = time(5, || {
+                black_box(ob.trace(rays));
+            });
+            let lead = if k == 0 {
+                format!(
+                    "{:>5} {:>8.1} {:>8.2} {:>6.1} {:>7}",
+                    label(n),
+                    build * 1e3,
+                    tris.len() as f64 / build / 1e6,
+                    bvh.bytes() as f64 / tris.len() as f64,
+                    bvh.node_count()
+                )
+            } else {
+                format!("{:>38}", "")
+            };
+            let m = |s: f64| RAYS as f64 / s / 1e6;
+            eprintln!(
+                "{lead} | {name:>5} {:>7.2} {:>7.2} {:>7.2} {:>6.2}",
+                m(single),
+                m(batch),
+                m(obvhs),
+                obvhs / single.min(batch),
+            );
+        }
     }
     eprintln!(
-        "(build: wall clock, all cores; rays: {RAYS} rays on one thread, per CPU-second of that \
-         thread; ratio = obvhs time / wavetrace time)\n"
+        "(build: wall clock, all cores. rays: M rays per CPU-second of one thread, {RAYS} \
+         rays; ratio = obvhs time / wavetrace's faster mode)"
+    );
+
+    // The Cornell box alone: is the BVH ever slower than testing all packs?
+    let e = edges(&cornell_box());
+    let packs = Triangle8::pack_all(&e);
+    let bvh = Bvh::build(&e);
+    let rays = &sets[0].1;
+    let brute = time(5, || {
+        for &(o, d) in rays {
+            black_box(closest_hit_brute_force(&e, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let pk = time(5, || {
+        for &(o, d) in rays {
+            black_box(closest_hit_packs(&packs, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let bv = time(5, || {
+        black_box(trace(&bvh, rays));
+    });
+    let m = |s: f64| RAYS as f64 / s / 1e6;
+    eprintln!(
+        "cornell (32 tris, {} nodes): brute force {:.2}, packs {:.2}, bvh {:.2} M rays/s\n",
+        bvh.node_count(),
+        m(brute),
+        m(pk),
+        m(bv)
     );
 }
 
@@ -224,7 +314,9 @@ fn benches(c: &mut Criterion) {
     if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
         summary();
     }
-    let rays = rays();
+    if std::env::var_os("WAVETRACE_BENCH_SUMMARY_ONLY").is_some() {
+        return;
+    }
     let mut build = c.benchmark_group("build");
     build.sample_size(10);
     for n in sizes() {
@@ -236,21 +328,30 @@ fn benches(c: &mut Criterion) {
     }
     build.finish();
 
-    let mut g = c.benchmark_group("incoherent");
-    g.throughput(Throughput::Elements(RAYS as u64));
-    g.sample_size(10);
-    for n in sizes() {
-        let tris = scene(n);
-        let bvh = Bvh::build(&edges(&tris));
-        g.bench_function(BenchmarkId::new("wavetrace", label(n)), |b| {
-            b.iter(|| trace(&bvh, &rays))
-        });
-        let ob = Obvhs::build(&tris);
-        g.bench_function(BenchmarkId::new("obvhs", label(n)), |b| {
-            b.iter(|| ob.trace(&rays))
-        });
+    for (group, aimed) in [("incoherent-box", false), ("incoherent-aimed", true)] {
+        let rays = rays(aimed);
+        let mut out = vec![None; RAYS];
+        let mut g = c.benchmark_group(group);
+        g.throughput(Throughput::Elements(RAYS as u64));
+        g.sample_size(10);
+        g.warm_up_time(Duration::from_millis(500));
+        g.measurement_time(Duration::from_secs(2));
+        for n in sizes() {
+            let tris = scene(n);
+            let bvh = Bvh::build(&edges(&tris));
+            g.bench_function(BenchmarkId::new("single", label(n)), |b| {
+                b.iter(|| trace(&bvh, &rays))
+            });
+            g.bench_function(BenchmarkId::new("batch", label(n)), |b| {
+                b.iter(|| trace_batch(&bvh, &rays, &mut out))
+            });
+            let ob = Obvhs::build(&tris);
+            g.bench_function(BenchmarkId::new("obvhs", label(n)), |b| {
+                b.iter(|| ob.trace(&rays))
+            });
+        }
+        g.finish();
     }
-    g.finish();
 }
 
 criterion_group!(bvh_benches, benches);

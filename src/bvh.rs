@@ -2,7 +2,7 @@
 //!
 //! # Layout
 //!
-//! Every inner node ([`Node8`]) holds the boxes of up to eight children in
+//! Every inner node (`Node8`) holds the boxes of up to eight children in
 //! structure-of-arrays form, so one ray is tested against all eight boxes
 //! with a handful of AVX2 instructions. Leaves are runs of 1 to
 //! [`MAX_LEAF_PACKS`] [`Triangle8`] packs: the very SoA packs and the very
@@ -433,6 +433,14 @@ fn sides(prims: &[Prim], r: &Range, mid: usize) -> (Range, Range) {
 
 /// Build the subtree over `prims`, which start at `base` in the full list.
 fn build_node(prims: &mut [Prim], base: usize, whole: Range, depth: u32) -> BuildNode {
+    if depth == 0 && whole.len <= MAX_LEAF_TRIS {
+        // A scene that fits in one leaf is one: testing its packs beats any
+        // node in front of them (measured on the 32-triangle Cornell box).
+        return BuildNode::Leaf {
+            start: base,
+            len: whole.len,
+        };
+    }
     let median = depth >= SAH_DEPTH_LIMIT;
     let mut kids = vec![Range { start: 0, ..whole }];
     while kids.len() < LANES {
@@ -504,6 +512,8 @@ pub struct Bvh {
     /// have no box) and tested against every ray, as brute force would.
     unbounded: Vec<Triangle8>,
     root: u32,
+    /// The root is a leaf (all of `packs`) and nothing is unbounded.
+    only_leaf: bool,
     triangles: usize,
     build_seconds: f64,
 }
@@ -546,7 +556,7 @@ impl Bvh {
             .filter(|(_, t)| !finite(t))
             .map(|(i, t)| (i as u32, *t))
             .collect();
-        let unbounded = unbounded_tris.chunks(LANES).map(Triangle8::pack).collect();
+        let unbounded: Vec<Triangle8> = unbounded_tris.chunks(LANES).map(Triangle8::pack).collect();
 
         let (b, cb) = prims
             .par_chunks(PAR_BIN / 4)
@@ -605,12 +615,15 @@ impl Bvh {
             jobs.push((mine, &prims[start..start + len]));
             rest = r;
         }
-        jobs.into_par_iter().with_min_len(256).for_each(|(out, prims)| {
-            for (o, c) in out.iter_mut().zip(prims.chunks(LANES)) {
-                *o = Pack(pack(tris, c));
-            }
-        });
+        jobs.into_par_iter()
+            .with_min_len(256)
+            .for_each(|(out, prims)| {
+                for (o, c) in out.iter_mut().zip(prims.chunks(LANES)) {
+                    *o = Pack(pack(tris, c));
+                }
+            });
         Bvh {
+            only_leaf: root & LEAF != 0 && root != EMPTY && unbounded.is_empty(),
             nodes,
             packs,
             unbounded,
@@ -624,8 +637,23 @@ impl Bvh {
     /// smallest `(t, triangle index)`, bit for bit what
     /// [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force)
     /// returns.
-    #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+        if self.only_leaf {
+            // A scene of one leaf (up to 32 triangles): just its packs,
+            // exactly `closest_hit_packs`' work.
+            let (o8, d8, t_min8) = (V3::splat(o), V3::splat(d), f32x8::splat(t_min));
+            let mut best = LaneHits::new(t_max);
+            for Pack(p) in &self.packs {
+                p.intersect(&o8, &d8, t_min8, &mut best);
+            }
+            return best.closest().filter(|h| h.t < t_max);
+        }
+        self.closest_hit_tree(o, d, t_min, t_max)
+    }
+
+    /// [`Bvh::closest_hit`] for a tree of inner nodes.
+    #[inline(never)]
+    fn closest_hit_tree(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
         // The same walk as `Traversal::step`, with its state in locals
         // (measured ~5% faster than stepping a `Traversal`).
         let r = RayPrep::new(o, d, t_min);
@@ -664,12 +692,18 @@ impl Bvh {
         }
     }
 
+    /// The packs of the leaf `leaf` (a child reference).
+    #[inline(always)]
+    fn leaf_packs(&self, leaf: u32) -> &[Pack] {
+        let start = (leaf & LEAF_START_MASK) as usize;
+        let count = ((leaf & !LEAF) >> LEAF_SHIFT) as usize + 1;
+        &self.packs[start..start + count]
+    }
+
     /// Test the leaf `leaf` (a child reference) against the ray.
     #[inline(always)]
     fn test_leaf(&self, leaf: u32, r: &RayPrep, best: &mut LaneHits) {
-        let start = (leaf & LEAF_START_MASK) as usize;
-        let count = ((leaf & !LEAF) >> LEAF_SHIFT) as usize + 1;
-        for Pack(p) in &self.packs[start..start + count] {
+        for Pack(p) in self.leaf_packs(leaf) {
             p.intersect(&r.o8, &r.d8, r.t_min8, best);
         }
     }

@@ -8,7 +8,7 @@
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
 //! - [`bvh`]: the 8-wide bounding volume hierarchy over the triangles;
 //! - [`mesh`]: generated meshes (spheres, terrain) for big scenes;
-//! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;

@@ -47,7 +47,11 @@ impl ReferenceTracer {
     /// A tracer for `scene` that follows paths to `max_depth`, over a
     /// [`Bvh`] built here (on the current rayon pool).
     pub fn new(scene: &Scene, max_depth: u32) -> Self {
-        Self::with_bvh(scene, max_depth, Arc::new(Bvh::build(&scene.triangle_edges())))
+        Self::with_bvh(
+            scene,
+            max_depth,
+            Arc::new(Bvh::build(&scene.triangle_edges())),
+        )
     }
 
     /// A tracer over a [`Bvh`] already built from `scene.triangle_edges()`

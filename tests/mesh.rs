@@ -50,7 +50,12 @@ fn quads_and_polygons_are_fan_triangulated() {
                v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
                v 2 0 0\nv 3 0 0\nv 3.5 1 0\nv 2.5 2 0\nv 1.5 1 0\n\
                f 1 2 3 4\nf 5 6 7 8 9\n";
-    let s = load(&d, &[("m.obj", obj)], &mesh("m.obj", "material = \"white\"")).unwrap();
+    let s = load(
+        &d,
+        &[("m.obj", obj)],
+        &mesh("m.obj", "material = \"white\""),
+    )
+    .unwrap();
     assert_eq!(s.triangles.len(), 2 + 3);
     let v = |x: f32, y: f32| Vec3::new(x, y, 0.0);
     // Fans from each polygon's first vertex, in order.
@@ -71,7 +76,12 @@ fn negative_indices_and_missing_normals() {
                vt 0 0\nvt 1 0\nvt 0 1\n\
                v 0 0 1\nv 1 0 1\nv 0 1 1\nf 4/1 5/2 6/3\n\
                vn 0 0 1\nf 1//1 2//1 3//1\n";
-    let s = load(&d, &[("m.obj", obj)], &mesh("m.obj", "material = \"white\"")).unwrap();
+    let s = load(
+        &d,
+        &[("m.obj", obj)],
+        &mesh("m.obj", "material = \"white\""),
+    )
+    .unwrap();
     assert_eq!(s.triangles.len(), 3);
     assert_eq!(s.triangles[0].v[2], Vec3::Y);
     assert_eq!(s.triangles[1].v[0], Vec3::Z);
@@ -88,7 +98,12 @@ fn mtl_materials_and_fallback() {
     // The first face has no usemtl: without a fallback that is an error.
     let e = load(&d, &files, &mesh("m.obj", "mtl = true")).unwrap_err();
     assert!(e.message.contains("no material"), "{e}");
-    let s = load(&d, &files, &mesh("m.obj", "mtl = true\nmaterial = \"white\"")).unwrap();
+    let s = load(
+        &d,
+        &files,
+        &mesh("m.obj", "mtl = true\nmaterial = \"white\""),
+    )
+    .unwrap();
     assert_eq!(s.triangles.len(), 3);
     let mat = |i: usize| &s.materials[s.triangles[i].material as usize];
     assert_eq!(mat(0).name, "white");
@@ -138,7 +153,8 @@ fn generated_meshes() {
     let s = load(&d, &[], body).unwrap();
     assert_eq!(
         s.triangles.len(),
-        wavetrace::mesh::sphere_triangle_count(5000) + wavetrace::mesh::terrain_triangle_count(2000)
+        wavetrace::mesh::sphere_triangle_count(5000)
+            + wavetrace::mesh::terrain_triangle_count(2000)
     );
 }
 
@@ -158,7 +174,10 @@ fn obj_error(test: &str, obj: &str, mtl: Option<&str>, file: &str, line: usize) 
     assert!(e.file.ends_with(file), "{e}");
     assert_eq!(e.line, line, "{e}");
     // The message says which scene entry loaded the mesh.
-    assert!(e.message.contains("mesh[0]") && e.message.contains("scene.toml"), "{e}");
+    assert!(
+        e.message.contains("mesh[0]") && e.message.contains("scene.toml"),
+        "{e}"
+    );
     e
 }
 
@@ -171,15 +190,33 @@ fn errors_name_the_file_and_line() {
     assert!(e.message.contains("-4"), "{e}");
     let e = obj_error("e3", &format!("{tri}f 0 1 2\n"), None, "m.obj", 4);
     assert!(e.message.contains("index 0"), "{e}");
-    let e = obj_error("e4", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", None, "m.obj", 2);
+    let e = obj_error(
+        "e4",
+        "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+        None,
+        "m.obj",
+        2,
+    );
     assert!(e.message.contains("not finite"), "{e}");
-    let e = obj_error("e5", "v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", None, "m.obj", 3);
+    let e = obj_error(
+        "e5",
+        "v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n",
+        None,
+        "m.obj",
+        3,
+    );
     assert!(e.message.contains("not finite"), "{e}");
     let e = obj_error("e6", "v 0 0 0\nv 1 x 0\n", None, "m.obj", 2);
     assert!(e.message.contains("not a number"), "{e}");
     obj_error("e7", "v 0 0\n", None, "m.obj", 1);
     obj_error("e8", &format!("{tri}f 1 2 a\n"), None, "m.obj", 4);
-    obj_error("e9", &format!("{tri}vt 0 0\nf 1/2 2/1 3/1\n"), None, "m.obj", 5);
+    obj_error(
+        "e9",
+        &format!("{tri}vt 0 0\nf 1/2 2/1 3/1\n"),
+        None,
+        "m.obj",
+        5,
+    );
     let e = obj_error(
         "e10",
         &format!("mtllib m.mtl\n{tri}f 1 2 3\n"),
@@ -206,11 +243,17 @@ fn errors_name_the_file_and_line() {
 fn missing_and_unreadable_files() {
     let d = dir("missing");
     let e = load(&d, &[], &mesh("nope.obj", "material = \"white\"")).unwrap_err();
-    assert!(e.file.ends_with("nope.obj") && e.message.contains("cannot read"), "{e}");
+    assert!(
+        e.file.ends_with("nope.obj") && e.message.contains("cannot read"),
+        "{e}"
+    );
     // A directory where the file should be.
     std::fs::create_dir_all(d.join("dir.obj")).unwrap();
     let e = load(&d, &[], &mesh("dir.obj", "material = \"white\"")).unwrap_err();
-    assert!(e.file.ends_with("dir.obj") && e.message.contains("cannot read"), "{e}");
+    assert!(
+        e.file.ends_with("dir.obj") && e.message.contains("cannot read"),
+        "{e}"
+    );
     // A missing MTL when its materials are asked for.
     let obj = "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     let e = load(
@@ -232,11 +275,26 @@ fn bad_generate_entries() {
     for (body, what) in [
         ("kind = \"cube\"\ntriangles = 10", "generate[0].kind"),
         ("kind = \"sphere\"\ntriangles = 0", "generate[0].triangles"),
-        ("kind = \"sphere\"\ntriangles = 100000000000", "generate[0].triangles"),
-        ("kind = \"sphere\"\ntriangles = 10\nradius = -1.0", "generate[0].radius"),
-        ("kind = \"sphere\"\ntriangles = 10\nsize = [1.0, 1.0]", "generate[0].size"),
-        ("kind = \"terrain\"\ntriangles = 10\nsize = [0.0, 1.0]", "generate[0].size"),
-        ("kind = \"sphere\"\ntriangles = 10\nscale = 0.0", "generate[0].scale"),
+        (
+            "kind = \"sphere\"\ntriangles = 100000000000",
+            "generate[0].triangles",
+        ),
+        (
+            "kind = \"sphere\"\ntriangles = 10\nradius = -1.0",
+            "generate[0].radius",
+        ),
+        (
+            "kind = \"sphere\"\ntriangles = 10\nsize = [1.0, 1.0]",
+            "generate[0].size",
+        ),
+        (
+            "kind = \"terrain\"\ntriangles = 10\nsize = [0.0, 1.0]",
+            "generate[0].size",
+        ),
+        (
+            "kind = \"sphere\"\ntriangles = 10\nscale = 0.0",
+            "generate[0].scale",
+        ),
     ] {
         let e = load(
             &d,
@@ -273,7 +331,10 @@ fn reference_bvh_and_brute_force_render_the_same_bits() {
             for k in 0..4 {
                 let a = bvh.sample(&camera, 9, (x, y), k, &mut r1);
                 let b = brute.sample(&camera, 9, (x, y), k, &mut r2);
-                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits));
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    b.to_array().map(f32::to_bits)
+                );
             }
         }
     }

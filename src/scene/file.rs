@@ -470,20 +470,19 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             Some(c) => vec(c, &format!("{what}.center"))?,
             None => Vec3::ZERO,
         };
-        let positive = |v: &Option<Spanned<f32>>, field: &str, default: f32, zero_ok: bool| {
-            match v {
-                None => Ok(default),
-                Some(s) => {
-                    let x = *s.get_ref();
-                    if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) {
-                        Ok(x)
-                    } else {
-                        Err(at(
-                            s.span(),
-                            &format!("{what}.{field}"),
-                            "must be a positive number".into(),
-                        ))
-                    }
+        let positive = |v: &Option<Spanned<f32>>, field: &str, default: f32, zero_ok: bool| match v
+        {
+            None => Ok(default),
+            Some(s) => {
+                let x = *s.get_ref();
+                if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) {
+                    Ok(x)
+                } else {
+                    Err(at(
+                        s.span(),
+                        &format!("{what}.{field}"),
+                        "must be a positive number".into(),
+                    ))
                 }
             }
         };
@@ -501,13 +500,21 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         let tris = match g.kind.get_ref().as_str() {
             "sphere" => {
                 unused(g.size.is_some(), g.size.as_ref().map(|s| s.span()), "size")?;
-                unused(g.height.is_some(), g.height.as_ref().map(|s| s.span()), "height")?;
+                unused(
+                    g.height.is_some(),
+                    g.height.as_ref().map(|s| s.span()),
+                    "height",
+                )?;
                 unused(g.seed.is_some(), g.seed.as_ref().map(|s| s.span()), "seed")?;
                 let radius = positive(&g.radius, "radius", 1.0, false)?;
                 crate::mesh::geodesic_sphere(center, radius, n as usize)
             }
             "terrain" => {
-                unused(g.radius.is_some(), g.radius.as_ref().map(|s| s.span()), "radius")?;
+                unused(
+                    g.radius.is_some(),
+                    g.radius.as_ref().map(|s| s.span()),
+                    "radius",
+                )?;
                 let size = match &g.size {
                     None => [1.0, 1.0],
                     Some(s) => {
@@ -545,8 +552,9 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             line: 0,
             column: 0,
             field: None,
-            message: "the scene has no geometry (no [[triangle]], [[quad]], [[mesh]] or [[generate]])"
-                .into(),
+            message:
+                "the scene has no geometry (no [[triangle]], [[quad]], [[mesh]] or [[generate]])"
+                    .into(),
         });
     }
 
@@ -617,7 +625,9 @@ fn transform(
         r.y.to_radians(),
         r.x.to_radians(),
     );
-    Ok(glam::Affine3A::from_scale_rotation_translation(s, rotation, t))
+    Ok(glam::Affine3A::from_scale_rotation_translation(
+        s, rotation, t,
+    ))
 }
 
 /// A mesh's `front_face` (counter-clockwise unless it says otherwise).

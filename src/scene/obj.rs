@@ -78,14 +78,14 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let mut reader = Lines::new(&bytes);
     let loaded = tobj::load_obj_buf(&mut reader, &options, loader);
     if let Some(e) = mtl_error.into_inner() {
         return Err(e);
     }
-    let (models, materials) = loaded.map_err(|e| err(reader.line(), format!("malformed OBJ: {e}")))?;
+    let (models, materials) =
+        loaded.map_err(|e| err(reader.line(), format!("malformed OBJ: {e}")))?;
     let materials = if with_mtl {
         materials
             .map_err(|e| err(0, format!("cannot load its materials: {e}")))?
@@ -114,7 +114,12 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
                 *m.positions.get(i + 2)?,
             ))
         };
-        let bad = || err(0, format!("object {:?}: a face index is out of range", model.name));
+        let bad = || {
+            err(
+                0,
+                format!("object {:?}: a face index is out of range", model.name),
+            )
+        };
         let arities: Vec<u32> = if m.face_arities.is_empty() {
             vec![3; m.indices.len() / 3]
         } else {
@@ -180,7 +185,10 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                             continue;
                         }
                         let x: i64 = part.parse().map_err(|_| {
-                            (line_no, format!("face corner {corner:?}: {part:?} is not an index"))
+                            (
+                                line_no,
+                                format!("face corner {corner:?}: {part:?} is not an index"),
+                            )
                         })?;
                         if k > 0 && count == 0 {
                             continue; // tobj ignores these when there are none
