@@ -215,6 +215,32 @@ fn wall(runs: usize, mut f: impl FnMut()) -> f64 {
 
 /// The summary tables: build and memory; rays/s for both ray sets; Cornell.
 fn summary() {
+    // The Cornell box alone: is the BVH ever slower than testing all packs?
+    let e = edges(&cornell_box());
+    let packs = Triangle8::pack_all(&e);
+    let bvh = Bvh::build(&e);
+    let cornell_rays = rays(false);
+    let brute = time(5, || {
+        for &(o, d) in &cornell_rays {
+            black_box(closest_hit_brute_force(&e, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let pk = time(5, || {
+        for &(o, d) in &cornell_rays {
+            black_box(closest_hit_packs(&packs, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let bv = time(5, || {
+        black_box(trace(&bvh, &cornell_rays));
+    });
+    let m = |s: f64| RAYS as f64 / s / 1e6;
+    eprintln!(
+        "cornell (32 tris, {} nodes): brute force {:.2}, packs {:.2}, bvh {:.2} M rays/s",
+        bvh.node_count(),
+        m(brute),
+        m(pk),
+        m(bv)
+    );
     let sets = [("box", rays(false)), ("aimed", rays(true))];
     let mut out = vec![None; RAYS];
     eprintln!(
@@ -280,33 +306,6 @@ fn summary() {
     eprintln!(
         "(build: wall clock, all cores. rays: M rays per CPU-second of one thread, {RAYS} \
          rays; ratio = obvhs time / wavetrace's faster mode)"
-    );
-
-    // The Cornell box alone: is the BVH ever slower than testing all packs?
-    let e = edges(&cornell_box());
-    let packs = Triangle8::pack_all(&e);
-    let bvh = Bvh::build(&e);
-    let rays = &sets[0].1;
-    let brute = time(5, || {
-        for &(o, d) in rays {
-            black_box(closest_hit_brute_force(&e, o, d, EPS, f32::INFINITY));
-        }
-    });
-    let pk = time(5, || {
-        for &(o, d) in rays {
-            black_box(closest_hit_packs(&packs, o, d, EPS, f32::INFINITY));
-        }
-    });
-    let bv = time(5, || {
-        black_box(trace(&bvh, rays));
-    });
-    let m = |s: f64| RAYS as f64 / s / 1e6;
-    eprintln!(
-        "cornell (32 tris, {} nodes): brute force {:.2}, packs {:.2}, bvh {:.2} M rays/s\n",
-        bvh.node_count(),
-        m(brute),
-        m(pk),
-        m(bv)
     );
 }
 

@@ -35,7 +35,7 @@
 //! padding, the two could differ. The tests fire millions of random rays,
 //! grazing ones included, without finding one.)
 
-use crate::geometry::{Hit, LaneHits, Triangle8, TriangleEdges};
+use crate::geometry::{Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_packs};
 use crate::real::{V3, Vec3x8};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -512,8 +512,9 @@ pub struct Bvh {
     /// have no box) and tested against every ray, as brute force would.
     unbounded: Vec<Triangle8>,
     root: u32,
-    /// The root is a leaf (all of `packs`) and nothing is unbounded.
-    only_leaf: bool,
+    /// When the root is a leaf (all of `packs`) and nothing is unbounded:
+    /// a copy of its packs (at most four) for [`closest_hit_packs`].
+    only_leaf: Option<Vec<Triangle8>>,
     triangles: usize,
     build_seconds: f64,
 }
@@ -623,7 +624,8 @@ impl Bvh {
                 }
             });
         Bvh {
-            only_leaf: root & LEAF != 0 && root != EMPTY && unbounded.is_empty(),
+            only_leaf: (root & LEAF != 0 && root != EMPTY && unbounded.is_empty())
+                .then(|| packs.iter().map(|p| p.0).collect()),
             nodes,
             packs,
             unbounded,
@@ -637,18 +639,14 @@ impl Bvh {
     /// smallest `(t, triangle index)`, bit for bit what
     /// [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force)
     /// returns.
+    #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
-        if self.only_leaf {
-            // A scene of one leaf (up to 32 triangles): just its packs,
-            // exactly `closest_hit_packs`' work.
-            let (o8, d8, t_min8) = (V3::splat(o), V3::splat(d), f32x8::splat(t_min));
-            let mut best = LaneHits::new(t_max);
-            for Pack(p) in &self.packs {
-                p.intersect(&o8, &d8, t_min8, &mut best);
-            }
-            return best.closest().filter(|h| h.t < t_max);
+        match &self.only_leaf {
+            // A scene of one leaf (up to 32 triangles): `closest_hit_packs`
+            // itself (`filter`: it would keep a hit at exactly t_max).
+            Some(packs) => closest_hit_packs(packs, o, d, t_min, t_max).filter(|h| h.t < t_max),
+            None => self.closest_hit_tree(o, d, t_min, t_max),
         }
-        self.closest_hit_tree(o, d, t_min, t_max)
     }
 
     /// [`Bvh::closest_hit`] for a tree of inner nodes.
