@@ -292,6 +292,16 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     }
     let setup_start = Instant::now();
     let renderer = Renderer::new(&job.scene, s)?;
+    if !quiet {
+        let b = renderer.bvh();
+        eprintln!(
+            "bvh: {} triangles, {} nodes, {:.1} MiB, built in {:.3} s",
+            b.triangle_count(),
+            b.node_count(),
+            b.bytes() as f64 / (1 << 20) as f64,
+            b.build_seconds()
+        );
+    }
     let interrupt = Interrupt::install()?;
     stages.setup = setup_start.elapsed().as_secs_f64();
 
@@ -382,6 +392,10 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         checkpoints_saved,
         partial_images: report.partial_images,
         output,
+        triangles: job.scene.triangles.len(),
+        bvh_nodes: renderer.bvh().node_count(),
+        build_seconds: renderer.bvh().build_seconds(),
+        bvh_bytes: renderer.bvh().bytes(),
     };
     if film.invalid_samples > 0 {
         eprintln!(

@@ -28,7 +28,14 @@ pub struct TriangleEdges {
 impl TriangleEdges {
     /// The triangle with vertices `v0`, `v1`, `v2`.
     pub fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
-        let (e1, e2) = (v1 - v0, v2 - v0);
+        Self::from_edges(v0, v1 - v0, v2 - v0)
+    }
+}
+
+impl TriangleEdges {
+    /// The triangle with vertex `v0` and edges `e1 = v1 - v0`,
+    /// `e2 = v2 - v0`.
+    pub fn from_edges(v0: Vec3, e1: Vec3, e2: Vec3) -> Self {
         Self {
             v0,
             e1,

@@ -5,7 +5,9 @@
 //! - [`scene`]: the scene (TOML files, the built-in Cornell box);
 //! - [`camera`]: camera rays, jittered over each pixel;
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
+//! - [`mesh`]: generated meshes (spheres, terrain) for big scenes;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
+//! - [`bvh`]: the 8-wide bounding volume hierarchy over the triangles;
 //! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (generate → intersect →
 //!   shade → bounce), the default;
@@ -20,11 +22,13 @@
 
 #![warn(missing_docs)]
 
+pub mod bvh;
 pub mod camera;
 pub mod cli;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod mesh;
 pub mod output;
 pub mod profile;
 pub mod real;

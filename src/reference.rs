@@ -13,31 +13,82 @@
 //!
 //! Emission is one-sided (towards the triangle's front); reflection is
 //! two-sided (the hemisphere is the one the incoming ray came from).
+//!
+//! Closest hits come from the [`Bvh`] by default; [`ReferenceTracer::with_brute_force`]
+//! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
+use crate::bvh::Bvh;
 use crate::camera::RasterCamera;
-use crate::geometry::{TriangleEdges, closest_hit_brute_force, hit_point};
+use crate::geometry::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
 use crate::real::V3;
 use crate::sampling::{PathRng, uniform_hemisphere};
 use crate::scene::Scene;
 use glam::Vec3;
 use std::f32::consts::PI;
+use std::sync::Arc;
 
-/// The scalar recursive path tracer over a brute-force triangle list.
+/// How the tracer finds closest hits.
+enum Accel {
+    /// Every triangle, scalar, in index order.
+    BruteForce(Vec<TriangleEdges>),
+    /// The bounding volume hierarchy.
+    Bvh(Arc<Bvh>),
+}
+
+/// The scalar recursive path tracer.
 pub struct ReferenceTracer {
     scene: Scene,
-    edges: Vec<TriangleEdges>,
+    accel: Accel,
     epsilon: f32,
     max_depth: u32,
 }
 
 impl ReferenceTracer {
-    /// A tracer for `scene` that follows paths to `max_depth`.
+    /// A tracer for `scene` that follows paths to `max_depth`, over a
+    /// [`Bvh`] built here (on the current rayon pool).
     pub fn new(scene: &Scene, max_depth: u32) -> Self {
+        Self::with_bvh(
+            scene,
+            max_depth,
+            Arc::new(Bvh::build(&scene.triangle_edges())),
+        )
+    }
+
+    /// A tracer over a [`Bvh`] already built from `scene.triangle_edges()`
+    /// (so engines can share one).
+    pub fn with_bvh(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
+        Self::with_accel(scene, max_depth, Accel::Bvh(bvh))
+    }
+
+    /// A tracer that tests every triangle for every ray: slow, and the
+    /// plainest possible oracle. Gives the same images as [`ReferenceTracer::new`].
+    pub fn with_brute_force(scene: &Scene, max_depth: u32) -> Self {
+        Self::with_accel(scene, max_depth, Accel::BruteForce(scene.triangle_edges()))
+    }
+
+    fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {
         Self {
-            edges: scene.triangles.iter().map(TriangleEdges::from).collect(),
+            accel,
             epsilon: scene.ray_epsilon(),
             scene: scene.clone(),
             max_depth,
+        }
+    }
+
+    /// The hierarchy this tracer uses, if any (not in brute-force mode).
+    pub fn bvh(&self) -> Option<&Arc<Bvh>> {
+        match &self.accel {
+            Accel::Bvh(b) => Some(b),
+            Accel::BruteForce(_) => None,
+        }
+    }
+
+    /// The closest hit of the ray `o + t·d` beyond the scene's epsilon.
+    #[inline]
+    pub fn closest_hit(&self, o: Vec3, d: Vec3) -> Option<Hit> {
+        match &self.accel {
+            Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, f32::INFINITY),
+            Accel::BruteForce(e) => closest_hit_brute_force(e, o, d, self.epsilon, f32::INFINITY),
         }
     }
 
@@ -55,8 +106,7 @@ impl ReferenceTracer {
             return Vec3::ZERO;
         }
         *rays += 1;
-        let Some(hit) = closest_hit_brute_force(&self.edges, o, d, self.epsilon, f32::INFINITY)
-        else {
+        let Some(hit) = self.closest_hit(o, d) else {
             return Vec3::ZERO;
         };
         let triangle = &self.scene.triangles[hit.triangle as usize];

@@ -1,5 +1,6 @@
 //! Render settings and the driver that runs an engine over sample ranges.
 
+use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::film::{Film, accumulate};
 use crate::reference::ReferenceTracer;
@@ -7,6 +8,7 @@ use crate::scene::Scene;
 use crate::wavefront::{Scratch, WavefrontEngine};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Which path tracer computes the samples.
@@ -193,6 +195,8 @@ pub struct Renderer {
     scene: Scene,
     pool: rayon::ThreadPool,
     engine: EngineState,
+    /// The hierarchy both engines trace against.
+    bvh: Arc<Bvh>,
     /// Wavefront queues, one per worker thread (uncontended locks).
     scratch: Vec<std::sync::Mutex<Scratch>>,
 }
@@ -212,12 +216,16 @@ impl Renderer {
             .map_err(|e| {
                 Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
             })?;
+        // One hierarchy, built on the render's threads, shared by the engine.
+        let bvh = Arc::new(pool.install(|| Bvh::build(&scene.triangle_edges())));
         let engine = match settings.engine {
-            Engine::Reference => {
-                EngineState::Reference(ReferenceTracer::new(scene, settings.max_depth))
-            }
+            Engine::Reference => EngineState::Reference(ReferenceTracer::with_bvh(
+                scene,
+                settings.max_depth,
+                bvh.clone(),
+            )),
             Engine::Wavefront => {
-                EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth))
+                EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth, bvh.clone()))
             }
         };
         let scratch = match settings.engine {
@@ -227,12 +235,18 @@ impl Renderer {
             Engine::Reference => Vec::new(),
         };
         Ok(Self {
+            bvh,
             scratch,
             settings: settings.clone(),
             scene: scene.clone(),
             pool,
             engine,
         })
+    }
+
+    /// The bounding volume hierarchy the engine traces against.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
     }
 
     /// The settings this renderer was made for.

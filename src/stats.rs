@@ -77,6 +77,14 @@ pub struct RenderStats {
     pub checkpoints_saved: u32,
     /// Partial images written (`--write-partial`).
     pub partial_images: u32,
+    /// Triangles in the scene.
+    pub triangles: usize,
+    /// Inner nodes of the bounding volume hierarchy (0 without one).
+    pub bvh_nodes: usize,
+    /// Wall-clock seconds spent building the hierarchy.
+    pub build_seconds: f64,
+    /// Memory held by the hierarchy's nodes and triangle packs, in bytes.
+    pub bvh_bytes: usize,
     /// The image written, if any.
     pub output: Option<String>,
 }

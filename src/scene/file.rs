@@ -52,7 +52,55 @@ struct SceneFile {
     triangles: Vec<Spanned<TriangleFile>>,
     #[serde(default, rename = "quad")]
     quads: Vec<Spanned<QuadFile>>,
+    #[serde(default, rename = "mesh")]
+    meshes: Vec<Spanned<MeshFile>>,
+    #[serde(default, rename = "generate")]
+    generated: Vec<Spanned<GenerateFile>>,
 }
+
+/// A uniform or per-axis scale.
+#[derive(Deserialize, Clone, Copy)]
+#[serde(untagged)]
+enum ScaleFile {
+    Uniform(f32),
+    PerAxis([f32; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    file: Spanned<String>,
+    material: Option<Spanned<String>>,
+    #[serde(default)]
+    mtl: Option<Spanned<bool>>,
+    front_face: Option<Spanned<String>>,
+    scale: Option<Spanned<ScaleFile>>,
+    rotate_deg: Option<Spanned<[f32; 3]>>,
+    translate: Option<Spanned<[f32; 3]>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GenerateFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    kind: Spanned<String>,
+    triangles: Spanned<u64>,
+    material: Spanned<String>,
+    center: Option<Spanned<[f32; 3]>>,
+    radius: Option<Spanned<f32>>,
+    size: Option<Spanned<[f32; 2]>>,
+    height: Option<Spanned<f32>>,
+    seed: Option<Spanned<u64>>,
+    scale: Option<Spanned<ScaleFile>>,
+    rotate_deg: Option<Spanned<[f32; 3]>>,
+    translate: Option<Spanned<[f32; 3]>>,
+}
+
+/// The most triangles one `[[generate]]` entry may ask for.
+pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -317,13 +365,196 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             triangles.push(t);
         }
     }
+    // Meshes: OBJ files, then generated meshes, each in file order.
+    let base = std::path::Path::new(file)
+        .parent()
+        .unwrap_or(std::path::Path::new(""));
+    let material_named = |name: &Spanned<String>, field: &str| -> Result<u32, SceneError> {
+        index.get(name.get_ref()).copied().ok_or_else(|| {
+            at(
+                name.span(),
+                field,
+                format!(
+                    "no material named {:?} (the file defines: {})",
+                    name.get_ref(),
+                    raw.materials.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
+    };
+    for (i, m) in raw.meshes.iter().enumerate() {
+        let what = format!("mesh[{i}]");
+        let m = m.get_ref();
+        let transform = transform(
+            &at,
+            &what,
+            m.scale.as_ref(),
+            m.rotate_deg.as_ref(),
+            m.translate.as_ref(),
+        )?;
+        let mesh_ccw = mesh_front_face(&at, &what, m.front_face.as_ref())?;
+        let fallback = m
+            .material
+            .as_ref()
+            .map(|n| material_named(n, &format!("{what}.material")))
+            .transpose()?;
+        let with_mtl = m.mtl.as_ref().is_some_and(|b| *b.get_ref());
+        if fallback.is_none() && !with_mtl {
+            return Err(at(
+                m.file.span(),
+                &what,
+                "give a `material`, or `mtl = true` to take materials from the OBJ's MTL files"
+                    .into(),
+            ));
+        }
+        let path = base.join(m.file.get_ref());
+        let obj = super::obj::load(&path, with_mtl).map_err(|e| {
+            let (line, column) = line_col(text, m.file.span().start);
+            SceneError {
+                file: e.file.display().to_string(),
+                line: e.line,
+                column: if e.line > 0 { 1 } else { 0 },
+                field: None,
+                message: format!("{} (the mesh of {what}, {file}:{line}:{column})", e.message),
+            }
+        })?;
+        // The OBJ's materials become scene materials named "file:name".
+        let mut mtl_index = Vec::new();
+        for om in &obj.materials {
+            let name = format!("{}:{}", m.file.get_ref(), om.name);
+            mtl_index.push(materials.len() as u32);
+            materials.push(Material {
+                name,
+                reflectance: om.diffuse,
+                emission: om.emission,
+            });
+        }
+        for (tri, mat) in obj.triangles.iter().zip(&obj.material) {
+            let mat = match mat.map(|k| mtl_index[k]).or(fallback) {
+                Some(mat) => mat,
+                None => {
+                    return Err(at(
+                        m.file.span(),
+                        &what,
+                        format!(
+                            "{}: some faces have no material (no `usemtl`, or one its MTL files \
+                             do not define) and the mesh gives no fallback `material`",
+                            path.display()
+                        ),
+                    ));
+                }
+            };
+            push_mesh_triangle(&mut triangles, &transform, mesh_ccw, *tri, mat);
+        }
+    }
+    for (i, g) in raw.generated.iter().enumerate() {
+        let what = format!("generate[{i}]");
+        let g = g.get_ref();
+        let mat = material_named(&g.material, &format!("{what}.material"))?;
+        let n = *g.triangles.get_ref();
+        if n == 0 || n > MAX_GENERATED_TRIANGLES {
+            return Err(at(
+                g.triangles.span(),
+                &format!("{what}.triangles"),
+                format!("must be between 1 and {MAX_GENERATED_TRIANGLES}"),
+            ));
+        }
+        let transform = transform(
+            &at,
+            &what,
+            g.scale.as_ref(),
+            g.rotate_deg.as_ref(),
+            g.translate.as_ref(),
+        )?;
+        let center = match &g.center {
+            Some(c) => vec(c, &format!("{what}.center"))?,
+            None => Vec3::ZERO,
+        };
+        let positive = |v: &Option<Spanned<f32>>, field: &str, default: f32, zero_ok: bool| match v
+        {
+            None => Ok(default),
+            Some(s) => {
+                let x = *s.get_ref();
+                if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) {
+                    Ok(x)
+                } else {
+                    Err(at(
+                        s.span(),
+                        &format!("{what}.{field}"),
+                        "must be a positive number".into(),
+                    ))
+                }
+            }
+        };
+        let unused = |present: bool, span: Option<std::ops::Range<usize>>, field: &str| {
+            if present {
+                Err(at(
+                    span.unwrap_or(g.kind.span()),
+                    &format!("{what}.{field}"),
+                    format!("`{field}` does not apply to kind {:?}", g.kind.get_ref()),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        let tris = match g.kind.get_ref().as_str() {
+            "sphere" => {
+                unused(g.size.is_some(), g.size.as_ref().map(|s| s.span()), "size")?;
+                unused(
+                    g.height.is_some(),
+                    g.height.as_ref().map(|s| s.span()),
+                    "height",
+                )?;
+                unused(g.seed.is_some(), g.seed.as_ref().map(|s| s.span()), "seed")?;
+                let radius = positive(&g.radius, "radius", 1.0, false)?;
+                crate::mesh::geodesic_sphere(center, radius, n as usize)
+            }
+            "terrain" => {
+                unused(
+                    g.radius.is_some(),
+                    g.radius.as_ref().map(|s| s.span()),
+                    "radius",
+                )?;
+                let size = match &g.size {
+                    None => [1.0, 1.0],
+                    Some(s) => {
+                        let v = *s.get_ref();
+                        if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+                            return Err(at(
+                                s.span(),
+                                &format!("{what}.size"),
+                                "must be two positive numbers".into(),
+                            ));
+                        }
+                        v
+                    }
+                };
+                let height = positive(&g.height, "height", 0.1, true)?;
+                let seed = g.seed.as_ref().map_or(0, |s| *s.get_ref());
+                crate::mesh::terrain(center, size, height, n as usize, seed)
+            }
+            other => {
+                return Err(at(
+                    g.kind.span(),
+                    &format!("{what}.kind"),
+                    format!("unknown kind {other:?} (known: \"sphere\", \"terrain\")"),
+                ));
+            }
+        };
+        for tri in tris {
+            push_mesh_triangle(&mut triangles, &transform, true, tri, mat);
+        }
+    }
+
     if triangles.is_empty() {
         return Err(SceneError {
             file: file.to_string(),
             line: 0,
             column: 0,
             field: None,
-            message: "the scene has no geometry (no [[triangle]] or [[quad]])".into(),
+            message:
+                "the scene has no geometry (no [[triangle]], [[quad]], [[mesh]] or [[generate]])"
+                    .into(),
         });
     }
 
@@ -346,6 +577,96 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         triangles,
         max_depth,
     })
+}
+
+/// Scale, then rotate (about x, then y, then z, in degrees), then translate.
+fn transform(
+    at: &impl Fn(std::ops::Range<usize>, &str, String) -> SceneError,
+    what: &str,
+    scale: Option<&Spanned<ScaleFile>>,
+    rotate_deg: Option<&Spanned<[f32; 3]>>,
+    translate: Option<&Spanned<[f32; 3]>>,
+) -> Result<glam::Affine3A, SceneError> {
+    let s = match scale {
+        None => Vec3::ONE,
+        Some(s) => {
+            let v = match *s.get_ref() {
+                ScaleFile::Uniform(x) => Vec3::splat(x),
+                ScaleFile::PerAxis(v) => Vec3::from_array(v),
+            };
+            if !v.is_finite() || v.x * v.y * v.z == 0.0 {
+                return Err(at(
+                    s.span(),
+                    &format!("{what}.scale"),
+                    "must be finite and non-zero".into(),
+                ));
+            }
+            v
+        }
+    };
+    let finite = |v: Option<&Spanned<[f32; 3]>>, field: &str| -> Result<Vec3, SceneError> {
+        match v {
+            None => Ok(Vec3::ZERO),
+            Some(v) if Vec3::from_array(*v.get_ref()).is_finite() => {
+                Ok(Vec3::from_array(*v.get_ref()))
+            }
+            Some(v) => Err(at(
+                v.span(),
+                &format!("{what}.{field}"),
+                "must be finite numbers".into(),
+            )),
+        }
+    };
+    let r = finite(rotate_deg, "rotate_deg")?;
+    let t = finite(translate, "translate")?;
+    let rotation = glam::Quat::from_euler(
+        glam::EulerRot::ZYX,
+        r.z.to_radians(),
+        r.y.to_radians(),
+        r.x.to_radians(),
+    );
+    Ok(glam::Affine3A::from_scale_rotation_translation(
+        s, rotation, t,
+    ))
+}
+
+/// A mesh's `front_face` (counter-clockwise unless it says otherwise).
+fn mesh_front_face(
+    at: &impl Fn(std::ops::Range<usize>, &str, String) -> SceneError,
+    what: &str,
+    front_face: Option<&Spanned<String>>,
+) -> Result<bool, SceneError> {
+    match front_face.map(|s| (s, s.get_ref().as_str())) {
+        None | Some((_, "counterclockwise")) => Ok(true),
+        Some((_, "clockwise")) => Ok(false),
+        Some((s, other)) => Err(at(
+            s.span(),
+            &format!("{what}.front_face"),
+            format!("must be \"counterclockwise\" or \"clockwise\", not {other:?}"),
+        )),
+    }
+}
+
+/// Transform a mesh triangle and add it, unless it has no area. A mirroring
+/// transform swaps the winding, so the front stays the same side of the
+/// surface.
+fn push_mesh_triangle(
+    out: &mut Vec<Triangle>,
+    transform: &glam::Affine3A,
+    ccw: bool,
+    v: [Vec3; 3],
+    material: u32,
+) {
+    let p = v.map(|p| transform.transform_point3(p));
+    let mirrored = transform.matrix3.determinant() < 0.0;
+    let t = if ccw != mirrored {
+        Triangle::ccw(p, material)
+    } else {
+        Triangle::cw(p, material)
+    };
+    if t.normal != Vec3::ZERO && p.iter().all(|q| q.is_finite()) {
+        out.push(t);
+    }
 }
 
 /// 1-based line and column of byte `offset` in `text`.

@@ -4,6 +4,7 @@
 //! built in ([`Scene::cornell`]) and is the default scene.
 
 pub mod file;
+pub mod obj;
 
 use crate::camera::Camera;
 use glam::Vec3;
@@ -99,6 +100,14 @@ impl Scene {
             message: format!("cannot read the scene file: {e}"),
         })?;
         file::parse(&text, &path.display().to_string())
+    }
+
+    /// The triangles as the intersection kernels want them, in index order.
+    pub fn triangle_edges(&self) -> Vec<crate::geometry::TriangleEdges> {
+        self.triangles
+            .iter()
+            .map(crate::geometry::TriangleEdges::from)
+            .collect()
     }
 
     /// The largest absolute coordinate of any vertex (at least 1).

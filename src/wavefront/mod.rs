@@ -21,22 +21,23 @@ pub mod intersect;
 pub mod queue;
 pub mod shade;
 
+use crate::bvh::Bvh;
 use crate::camera::RasterCamera;
 use crate::film::PixelSum;
-use crate::geometry::{Triangle8, TriangleEdges};
 use crate::render::{Counters, StageSeconds};
 use crate::scene::Scene;
 use queue::PathQueue;
 use shade::Bins;
 use std::f32::consts::PI;
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::Instant;
 
-/// The scene as the stages read it: packed triangles and per-triangle
+/// The scene as the stages read it: the hierarchy and per-triangle
 /// shading data.
 pub struct World {
-    /// Triangles in 8-wide packs, in index order.
-    pub packs: Vec<Triangle8>,
+    /// The bounding volume hierarchy over the triangles.
+    pub bvh: Arc<Bvh>,
     /// Front-side unit normal of each triangle: x, y, z columns.
     pub normals: [Vec<f32>; 3],
     /// Material index of each triangle.
@@ -50,11 +51,10 @@ pub struct World {
 }
 
 impl World {
-    /// Prepare `scene` for the stages.
-    pub fn new(scene: &Scene) -> Self {
-        let edges: Vec<TriangleEdges> = scene.triangles.iter().map(TriangleEdges::from).collect();
+    /// Prepare `scene`, whose hierarchy is `bvh`, for the stages.
+    pub fn new(scene: &Scene, bvh: Arc<Bvh>) -> Self {
         Self {
-            packs: Triangle8::pack_all(&edges),
+            bvh,
             normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
             material_of: scene.triangles.iter().map(|t| t.material).collect(),
             emission: scene
@@ -73,10 +73,12 @@ impl World {
     }
 }
 
-/// Per-thread working memory: the queue and the material bins.
+/// Per-thread working memory: the queue, the material bins, and room for
+/// the hierarchy's batched queries.
 pub struct Scratch {
     queue: PathQueue,
     bins: Bins,
+    rays: intersect::RayBatch,
 }
 
 impl Scratch {
@@ -85,6 +87,7 @@ impl Scratch {
         Self {
             queue: PathQueue::with_capacity(batch_size),
             bins: Bins::default(),
+            rays: intersect::RayBatch::default(),
         }
     }
 }
@@ -96,10 +99,11 @@ pub struct WavefrontEngine {
 }
 
 impl WavefrontEngine {
-    /// An engine for `scene` following paths to `max_depth`.
-    pub fn new(scene: &Scene, max_depth: u32) -> Self {
+    /// An engine for `scene` following paths to `max_depth`, tracing rays
+    /// against `bvh` (built from `scene.triangle_edges()`).
+    pub fn new(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
         Self {
-            world: World::new(scene),
+            world: World::new(scene, bvh),
             max_depth,
         }
     }
@@ -166,7 +170,7 @@ impl WavefrontEngine {
         sums: &mut [PixelSum],
         counters: &mut Counters,
     ) {
-        let Scratch { queue, bins } = scratch;
+        let Scratch { queue, bins, rays } = scratch;
         let clock = Instant::now();
         generate::generate(queue, camera, width, seed, pixels, samples);
         counters.paths += queue.len() as u64;
@@ -181,7 +185,7 @@ impl WavefrontEngine {
             }
             let clock = Instant::now();
             counters.rays += queue.len() as u64;
-            intersect::intersect(queue, &self.world);
+            intersect::intersect(queue, &self.world, rays);
             let t1 = Instant::now();
             let last = depth + 1 >= self.max_depth;
             counters.invalid_samples +=

@@ -1,0 +1,353 @@
+//! BVH benchmarks: build speed and memory, and incoherent closest-hit
+//! throughput against the same rays through the `obvhs` crate.
+//!
+//! The scene at each size is the DH2323 Cornell box (32 triangles) with a
+//! geodesic sphere of about N triangles on the short block — the geometry of
+//! `scenes/sphere-1m.toml` — made by the same generator the scene files and
+//! the tests use. Two sets of incoherent rays, all traced on one thread (so
+//! the throughput is per core):
+//!
+//! - `box`: origins uniform in the box, directions uniform on the sphere —
+//!   what a path tracer's bounces in this scene look like (most end on the
+//!   walls);
+//! - `aimed`: origins uniform in the box, each aimed at a uniform point
+//!   inside the sphere — every ray ends on the big mesh, the worst case for
+//!   memory.
+//!
+//! Each set goes through `Bvh::closest_hit` one ray at a time (`single`),
+//! through `Bvh::closest_hits` (`batch`: 16 rays interleaved with prefetch),
+//! and through obvhs's compressed wide BVH (`slow_build` preset, its best
+//! quality) with its own triangle test.
+//!
+//! ```sh
+//! cargo bench --bench bvh                         # 1k, 10k, 100k, 1M
+//! WAVETRACE_BENCH_10M=1 cargo bench --bench bvh   # adds 10M (needs ~4 GB)
+//! ```
+//!
+//! Before the criterion groups, a summary prints, per size: build time,
+//! M triangles/s, bytes/triangle, M rays/s for wavetrace and for obvhs, and
+//! their ratio (medians of several runs, rays timed in this thread's CPU
+//! time so that other processes on a shared machine do not count), and the
+//! 32-triangle Cornell box through brute force, `closest_hit_packs` and the
+//! BVH. `WAVETRACE_BENCH_SUMMARY_ONLY=1` stops after the summary.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use glam::{Vec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::cwbvh::{CwBvh, builder::build_cwbvh_from_tris};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle as OTriangle;
+use rand_core::Rng;
+use rand_pcg::Pcg64Mcg;
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+use wavetrace::bvh::Bvh;
+use wavetrace::geometry::{
+    Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
+};
+use wavetrace::mesh::{cornell_box, geodesic_sphere};
+
+const RAYS: usize = 1 << 16;
+const EPS: f32 = 1e-4;
+
+fn sizes() -> Vec<usize> {
+    let mut s = vec![1_000, 10_000, 100_000, 1_000_000];
+    if std::env::var_os("WAVETRACE_BENCH_10M").is_some() {
+        s.push(10_000_000);
+    }
+    s
+}
+
+fn label(n: usize) -> String {
+    match n {
+        n if n >= 1_000_000 => format!("{}M", n / 1_000_000),
+        n => format!("{}k", n / 1_000),
+    }
+}
+
+/// The Cornell box with a sphere of about `n` triangles (minus the box's 32).
+fn scene(n: usize) -> Vec<[Vec3; 3]> {
+    let mut t = cornell_box();
+    let sphere = geodesic_sphere(SPHERE_CENTER, SPHERE_RADIUS, n.saturating_sub(t.len()));
+    t.extend(sphere);
+    t
+}
+
+fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
+    tris.iter()
+        .map(|v| TriangleEdges::from_edges(v[0], v[1] - v[0], v[2] - v[0]))
+        .collect()
+}
+
+const SPHERE_CENTER: Vec3 = Vec3::new(0.33, 0.105, -0.39);
+const SPHERE_RADIUS: f32 = 0.3;
+
+/// `aimed = false`: the `box` rays; `true`: the `aimed` rays.
+fn rays(aimed: bool) -> Vec<(Vec3, Vec3)> {
+    let mut g = Pcg64Mcg::new(0x5eed);
+    // Uniform in [-1, 1).
+    let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0;
+    (0..RAYS)
+        .map(|_| {
+            let o = Vec3::new(f(), f(), f()) * 0.999;
+            // Uniform in the unit ball.
+            let v = loop {
+                let v = Vec3::new(f(), f(), f());
+                let l = v.length_squared();
+                if l > 1e-6 && l <= 1.0 {
+                    break v;
+                }
+            };
+            let d = if aimed {
+                SPHERE_CENTER + v * SPHERE_RADIUS - o
+            } else {
+                v
+            };
+            (o, d.normalize())
+        })
+        .collect()
+}
+
+struct Obvhs {
+    bvh: CwBvh,
+    tris: Vec<OTriangle>,
+}
+
+impl Obvhs {
+    fn build(tris: &[[Vec3; 3]]) -> Self {
+        let t: Vec<OTriangle> = tris
+            .iter()
+            .map(|v| OTriangle {
+                v0: v[0].into(),
+                v1: v[1].into(),
+                v2: v[2].into(),
+            })
+            .collect();
+        let bvh = build_cwbvh_from_tris(&t, BvhBuildParams::slow_build(), &mut Duration::default());
+        // Triangles in leaf order, as obvhs's own examples do.
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| t[i as usize])
+            .collect();
+        Self { bvh, tris }
+    }
+
+    /// Sum of hit distances (so nothing is optimised away).
+    fn trace(&self, rays: &[(Vec3, Vec3)]) -> f64 {
+        let mut sum = 0.0f64;
+        for &(o, d) in rays {
+            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), EPS, f32::INFINITY);
+            let mut hit = RayHit::none();
+            if self
+                .bvh
+                .ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+            {
+                sum += hit.t as f64;
+            }
+        }
+        sum
+    }
+}
+
+fn trace(bvh: &Bvh, rays: &[(Vec3, Vec3)]) -> f64 {
+    let mut sum = 0.0f64;
+    for &(o, d) in rays {
+        if let Some(h) = bvh.closest_hit(o, d, EPS, f32::INFINITY) {
+            sum += h.t as f64;
+        }
+    }
+    sum
+}
+
+fn trace_batch(bvh: &Bvh, rays: &[(Vec3, Vec3)], out: &mut [Option<Hit>]) -> f64 {
+    bvh.closest_hits(rays, EPS, f32::INFINITY, out);
+    out.iter().flatten().map(|h| h.t as f64).sum()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// This thread's CPU time in seconds: on a shared machine, time spent
+/// descheduled does not count (wall time would).
+fn thread_cpu_seconds() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec for the duration of the call.
+    let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(r, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// Median CPU seconds (this thread) of `runs` calls of `f`.
+fn time(runs: usize, mut f: impl FnMut()) -> f64 {
+    median(
+        (0..runs)
+            .map(|_| {
+                let t = thread_cpu_seconds();
+                f();
+                thread_cpu_seconds() - t
+            })
+            .collect(),
+    )
+}
+
+/// Median wall-clock seconds of `runs` calls of `f`.
+fn wall(runs: usize, mut f: impl FnMut()) -> f64 {
+    median(
+        (0..runs)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+/// The summary tables: build and memory; rays/s for both ray sets; Cornell.
+fn summary() {
+    // The Cornell box alone: is the BVH ever slower than testing all packs?
+    let e = edges(&cornell_box());
+    let packs = Triangle8::pack_all(&e);
+    let bvh = Bvh::build(&e);
+    let cornell_rays = rays(false);
+    let brute = time(5, || {
+        for &(o, d) in &cornell_rays {
+            black_box(closest_hit_brute_force(&e, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let pk = time(5, || {
+        for &(o, d) in &cornell_rays {
+            black_box(closest_hit_packs(&packs, o, d, EPS, f32::INFINITY));
+        }
+    });
+    let bv = time(5, || {
+        black_box(trace(&bvh, &cornell_rays));
+    });
+    let m = |s: f64| RAYS as f64 / s / 1e6;
+    eprintln!(
+        "cornell (32 tris, {} nodes): brute force {:.2}, packs {:.2}, bvh {:.2} M rays/s",
+        bvh.node_count(),
+        m(brute),
+        m(pk),
+        m(bv)
+    );
+    let sets = [("box", rays(false)), ("aimed", rays(true))];
+    let mut out = vec![None; RAYS];
+    eprintln!(
+        "\n{:>5} {:>8} {:>8} {:>6} {:>7} | {:>5} {:>7} {:>7} {:>7} {:>6}",
+        "tris",
+        "build ms",
+        "Mtris/s",
+        "B/tri",
+        "nodes",
+        "rays",
+        "single",
+        "batch",
+        "obvhs",
+        "ratio"
+    );
+    for n in sizes() {
+        let tris = scene(n);
+        let e = edges(&tris);
+        let build = wall(3, || {
+            black_box(Bvh::build(&e));
+        });
+        let bvh = Bvh::build(&e);
+        let ob = Obvhs::build(&tris);
+        for (k, (name, rays)) in sets.iter().enumerate() {
+            // Both find the same hits (obvhs's triangle test rounds
+            // differently, so compare the sum of t loosely).
+            let (a, b) = (trace(&bvh, rays), ob.trace(rays));
+            assert!(
+                (a - b).abs() <= 1e-3 * a.abs(),
+                "wavetrace {a} vs obvhs {b}"
+            );
+            let single = time(5, || {
+                black_box(trace(&bvh, rays));
+            });
+            let batch = time(5, || {
+                black_box(trace_batch(&bvh, rays, &mut out));
+            });
+            let obvhs = time(5, || {
+                black_box(ob.trace(rays));
+            });
+            let lead = if k == 0 {
+                format!(
+                    "{:>5} {:>8.1} {:>8.2} {:>6.1} {:>7}",
+                    label(n),
+                    build * 1e3,
+                    tris.len() as f64 / build / 1e6,
+                    bvh.bytes() as f64 / tris.len() as f64,
+                    bvh.node_count()
+                )
+            } else {
+                format!("{:>38}", "")
+            };
+            let m = |s: f64| RAYS as f64 / s / 1e6;
+            eprintln!(
+                "{lead} | {name:>5} {:>7.2} {:>7.2} {:>7.2} {:>6.2}",
+                m(single),
+                m(batch),
+                m(obvhs),
+                obvhs / single.min(batch),
+            );
+        }
+    }
+    eprintln!(
+        "(build: wall clock, all cores. rays: M rays per CPU-second of one thread, {RAYS} \
+         rays; ratio = obvhs time / wavetrace's faster mode)"
+    );
+}
+
+fn benches(c: &mut Criterion) {
+    if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
+        summary();
+    }
+    if std::env::var_os("WAVETRACE_BENCH_SUMMARY_ONLY").is_some() {
+        return;
+    }
+    let mut build = c.benchmark_group("build");
+    build.sample_size(10);
+    for n in sizes() {
+        let e = edges(&scene(n));
+        build.throughput(Throughput::Elements(e.len() as u64));
+        build.bench_with_input(BenchmarkId::from_parameter(label(n)), &e, |b, e| {
+            b.iter(|| Bvh::build(e))
+        });
+    }
+    build.finish();
+
+    for (group, aimed) in [("incoherent-box", false), ("incoherent-aimed", true)] {
+        let rays = rays(aimed);
+        let mut out = vec![None; RAYS];
+        let mut g = c.benchmark_group(group);
+        g.throughput(Throughput::Elements(RAYS as u64));
+        g.sample_size(10);
+        g.warm_up_time(Duration::from_millis(500));
+        g.measurement_time(Duration::from_secs(2));
+        for n in sizes() {
+            let tris = scene(n);
+            let bvh = Bvh::build(&edges(&tris));
+            g.bench_function(BenchmarkId::new("single", label(n)), |b| {
+                b.iter(|| trace(&bvh, &rays))
+            });
+            g.bench_function(BenchmarkId::new("batch", label(n)), |b| {
+                b.iter(|| trace_batch(&bvh, &rays, &mut out))
+            });
+            let ob = Obvhs::build(&tris);
+            g.bench_function(BenchmarkId::new("obvhs", label(n)), |b| {
+                b.iter(|| ob.trace(&rays))
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(bvh_benches, benches);
+criterion_main!(bvh_benches);

@@ -1,0 +1,300 @@
+//! Wavefront OBJ meshes (and their MTL materials) for `[[mesh]]` entries.
+//!
+//! Loading is done by `tobj`. Before it runs, a quick pass over the file
+//! checks what `tobj` does not, or does without saying where: every vertex
+//! coordinate is a finite number, and every face index names a vertex
+//! defined above it. So a bad file gets an error with its own line number,
+//! never a panic and never a silently broken mesh.
+
+use glam::Vec3;
+use std::cell::RefCell;
+use std::io::{BufRead, Read};
+use std::path::{Path, PathBuf};
+
+/// What is wrong with a mesh file, and where: `file:line` (line 0 when the
+/// problem has no line).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjError {
+    /// The OBJ or MTL file.
+    pub file: PathBuf,
+    /// 1-based line in that file; 0 when unknown.
+    pub line: usize,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// A material of an MTL file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjMaterial {
+    /// Its `newmtl` name.
+    pub name: String,
+    /// `Kd` (black if absent).
+    pub diffuse: Vec3,
+    /// `Ke` (black if absent).
+    pub emission: Vec3,
+}
+
+/// An OBJ file's polygons, fan-triangulated, in file order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ObjMesh {
+    /// Triangles: three positions each, in the file's winding.
+    pub triangles: Vec<[Vec3; 3]>,
+    /// Per triangle: index into `materials`, or `None` (no `usemtl`, or
+    /// one that names no material of the MTL files).
+    pub material: Vec<Option<usize>>,
+    /// The materials of the file's `mtllib`s (empty unless asked for).
+    pub materials: Vec<ObjMaterial>,
+}
+
+/// Load `path`; with `with_mtl`, also its `mtllib` materials (paths
+/// relative to the OBJ's directory).
+pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
+    let err = |line: usize, message: String| ObjError {
+        file: path.to_path_buf(),
+        line,
+        message,
+    };
+    let bytes = std::fs::read(path).map_err(|e| err(0, format!("cannot read the mesh: {e}")))?;
+    precheck_obj(&bytes).map_err(|(line, m)| err(line, m))?;
+
+    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mtl_error: RefCell<Option<ObjError>> = RefCell::new(None);
+    let loader = |mtl: &Path| -> tobj::MTLLoadResult {
+        if !with_mtl {
+            return Ok((Vec::new(), Default::default()));
+        }
+        let mtl_path = dir.join(mtl);
+        let result = load_mtl(&mtl_path);
+        match result {
+            Ok(r) => r,
+            Err(e) => {
+                mtl_error.borrow_mut().get_or_insert(e);
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    };
+    let options = tobj::LoadOptions {
+        triangulate: false,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let mut reader = Lines::new(&bytes);
+    let loaded = tobj::load_obj_buf(&mut reader, &options, loader);
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
+    let (models, materials) =
+        loaded.map_err(|e| err(reader.line(), format!("malformed OBJ: {e}")))?;
+    let materials = if with_mtl {
+        materials
+            .map_err(|e| err(0, format!("cannot load its materials: {e}")))?
+            .into_iter()
+            .map(|m| ObjMaterial {
+                name: m.name,
+                diffuse: Vec3::from_array(m.diffuse.unwrap_or([0.0; 3])),
+                emission: Vec3::from_array(m.emissive.unwrap_or([0.0; 3])),
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+
+    let mut mesh = ObjMesh {
+        materials,
+        ..Default::default()
+    };
+    for model in &models {
+        let m = &model.mesh;
+        let pos = |i: u32| -> Option<Vec3> {
+            let i = i as usize * 3;
+            Some(Vec3::new(
+                *m.positions.get(i)?,
+                *m.positions.get(i + 1)?,
+                *m.positions.get(i + 2)?,
+            ))
+        };
+        let bad = || {
+            err(
+                0,
+                format!("object {:?}: a face index is out of range", model.name),
+            )
+        };
+        let arities: Vec<u32> = if m.face_arities.is_empty() {
+            vec![3; m.indices.len() / 3]
+        } else {
+            m.face_arities.clone()
+        };
+        let mat = m.material_id.filter(|&i| i < mesh.materials.len());
+        let mut at = 0usize;
+        for n in arities {
+            let n = n as usize;
+            let face = m.indices.get(at..at + n).ok_or_else(bad)?;
+            at += n;
+            // Fan from the first vertex: (0, k, k+1).
+            let p0 = pos(face[0]).ok_or_else(bad)?;
+            for k in 1..n.saturating_sub(1) {
+                let p1 = pos(face[k]).ok_or_else(bad)?;
+                let p2 = pos(face[k + 1]).ok_or_else(bad)?;
+                mesh.triangles.push([p0, p1, p2]);
+                mesh.material.push(mat);
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// Check the lines `tobj` would accept without a word: vertices with
+/// non-finite coordinates, and face indices past the vertices defined so
+/// far (or 0, or negative past the first).
+fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
+    let (mut v, mut vt, mut vn) = (0usize, 0usize, 0usize);
+    for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line_no = i + 1;
+        let line = std::str::from_utf8(raw)
+            .map_err(|_| (line_no, "the line is not valid UTF-8".to_string()))?;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let coords: Vec<&str> = words.take(3).collect();
+                if coords.len() < 3 {
+                    return Err((line_no, "a vertex needs three coordinates".into()));
+                }
+                for c in coords {
+                    let x: f32 = c.parse().map_err(|_| {
+                        (line_no, format!("vertex coordinate {c:?} is not a number"))
+                    })?;
+                    if !x.is_finite() {
+                        return Err((line_no, format!("vertex coordinate {c:?} is not finite")));
+                    }
+                }
+                v += 1;
+            }
+            Some("vt") => vt += 1,
+            Some("vn") => vn += 1,
+            Some("f") => {
+                for corner in words {
+                    for (k, part) in corner.split('/').enumerate() {
+                        let (what, count) = match k {
+                            0 => ("vertex", v),
+                            1 => ("texture coordinate", vt),
+                            2 => ("normal", vn),
+                            _ => return Err((line_no, format!("bad face corner {corner:?}"))),
+                        };
+                        if part.is_empty() && k > 0 {
+                            continue;
+                        }
+                        let x: i64 = part.parse().map_err(|_| {
+                            (
+                                line_no,
+                                format!("face corner {corner:?}: {part:?} is not an index"),
+                            )
+                        })?;
+                        if k > 0 && count == 0 {
+                            continue; // tobj ignores these when there are none
+                        }
+                        let ok = if x > 0 {
+                            x as u64 <= count as u64
+                        } else {
+                            x < 0 && x.unsigned_abs() <= count as u64
+                        };
+                        if !ok {
+                            return Err((
+                                line_no,
+                                if x == 0 {
+                                    format!("face {what} index 0 (OBJ indices start at 1)")
+                                } else {
+                                    format!(
+                                        "face {what} index {x} is past the {count} {what}(s) defined above it"
+                                    )
+                                },
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Load an MTL file after checking the colours wavetrace reads.
+fn load_mtl(path: &Path) -> Result<tobj::MTLLoadResult, ObjError> {
+    let err = |line: usize, message: String| ObjError {
+        file: path.to_path_buf(),
+        line,
+        message,
+    };
+    let bytes =
+        std::fs::read(path).map_err(|e| err(0, format!("cannot read the material file: {e}")))?;
+    for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = std::str::from_utf8(raw)
+            .map_err(|_| err(i + 1, "the line is not valid UTF-8".into()))?;
+        let mut words = line.split_whitespace();
+        let key = words.next();
+        if matches!(key, Some("Ka" | "Kd" | "Ks" | "Ke" | "Kt" | "Tf")) {
+            let key = key.unwrap_or_default();
+            let values: Vec<f32> = words
+                .take(3)
+                .map(|w| w.parse::<f32>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| err(i + 1, format!("`{key}` needs three numbers")))?;
+            if values.len() != 3 || values.iter().any(|x| !x.is_finite()) {
+                return Err(err(i + 1, format!("`{key}` needs three finite numbers")));
+            }
+            if key == "Kd" && values.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
+                return Err(err(i + 1, "`Kd` components must be in [0, 1]".into()));
+            }
+            if key == "Ke" && values.iter().any(|&x| x < 0.0) {
+                return Err(err(i + 1, "`Ke` must not be negative".into()));
+            }
+        }
+    }
+    let mut reader = Lines::new(&bytes);
+    let result = tobj::load_mtl_buf(&mut reader);
+    if let Err(e) = &result {
+        return Err(err(reader.line(), format!("malformed MTL: {e}")));
+    }
+    Ok(result)
+}
+
+/// A reader over bytes that knows which line it has read up to.
+struct Lines<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Lines<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        Self { bytes, pos: 0 }
+    }
+
+    /// The 1-based line of the last byte consumed.
+    fn line(&self) -> usize {
+        let done = &self.bytes[..self.pos];
+        let newlines = done.iter().filter(|&&b| b == b'\n').count();
+        if done.last().is_some_and(|&b| b != b'\n') {
+            newlines + 1
+        } else {
+            newlines.max(1)
+        }
+    }
+}
+
+impl Read for Lines<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = (&self.bytes[self.pos..]).read(buf)?;
+        self.pos += n;
+        Ok(n)
+    }
+}
+
+impl BufRead for Lines<'_> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        Ok(&self.bytes[self.pos..])
+    }
+    fn consume(&mut self, n: usize) {
+        self.pos = (self.pos + n).min(self.bytes.len());
+    }
+}

@@ -1,0 +1,355 @@
+//! The BVH answers every closest-hit query exactly as brute force does:
+//! the same triangle and the same `t`, bit for bit.
+
+use glam::Vec3;
+use rand_core::Rng;
+use rand_pcg::Pcg64Mcg;
+use wavetrace::bvh::Bvh;
+use wavetrace::geometry::{Hit, TriangleEdges, closest_hit_brute_force};
+use wavetrace::mesh::{cornell_box, geodesic_sphere, terrain};
+
+fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
+    tris.iter()
+        .map(|v| TriangleEdges::from_edges(v[0], v[1] - v[0], v[2] - v[0]))
+        .collect()
+}
+
+struct Rand(Pcg64Mcg);
+
+impl Rand {
+    fn new(seed: u64) -> Self {
+        Self(Pcg64Mcg::new(
+            0x2360_ED05_1FC6_5DA4_4385_DF64_9FCC_F645 ^ seed as u128,
+        ))
+    }
+    fn f(&mut self) -> f32 {
+        (self.0.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f()
+    }
+    fn point_in(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
+        Vec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+    fn dir(&mut self) -> Vec3 {
+        loop {
+            let v = self.point_in(Vec3::splat(-1.0), Vec3::splat(1.0));
+            let l = v.length_squared();
+            if l > 1e-6 && l <= 1.0 {
+                return v / l.sqrt();
+            }
+        }
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.0.next_u64() % n as u64) as usize
+    }
+}
+
+fn key(h: Option<Hit>) -> Option<(u32, u32)> {
+    h.map(|h| (h.triangle, h.t.to_bits()))
+}
+
+fn bounds(tris: &[TriangleEdges]) -> (Vec3, Vec3) {
+    let mut lo = Vec3::INFINITY;
+    let mut hi = Vec3::NEG_INFINITY;
+    for t in tris {
+        for v in [t.v0, t.v0 + t.e1, t.v0 + t.e2] {
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Fire `rays` random rays (origins in the scene's box grown by 20%,
+/// directions uniform) plus `surface` rays that start on a random triangle
+/// and compare with brute force. Returns how many hit.
+fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usize {
+    let bvh = Bvh::build(tris);
+    let (lo, hi) = bounds(tris);
+    let grow = (hi - lo) * 0.2 + Vec3::splat(1e-3);
+    let eps = 1e-4 * lo.abs().max(hi.abs()).max_element().max(1.0);
+    let mut r = Rand::new(seed);
+    let mut hits = 0;
+    let mut one = |o: Vec3, d: Vec3, t_min: f32, t_max: f32| {
+        let want = closest_hit_brute_force(tris, o, d, t_min, t_max);
+        let got = bvh.closest_hit(o, d, t_min, t_max);
+        assert_eq!(
+            key(got),
+            key(want),
+            "ray o={o:?} d={d:?} t_min={t_min} t_max={t_max}: bvh {got:?}, brute force {want:?}"
+        );
+        hits += want.is_some() as usize;
+    };
+    for i in 0..rays {
+        let o = r.point_in(lo - grow, hi + grow);
+        let d = r.dir();
+        // Mostly open rays; some with a finite t_max, some with t_min = 0.
+        let (t_min, t_max) = match i % 8 {
+            0 => (0.0, f32::INFINITY),
+            1 => (eps, r.range(0.0, (hi - lo).length())),
+            _ => (eps, f32::INFINITY),
+        };
+        one(o, d, t_min, t_max);
+    }
+    // The batch query gives each ray's answer too.
+    let mut r2 = Rand::new(seed ^ 0xba7c);
+    let batch: Vec<(Vec3, Vec3)> = (0..rays.min(3000))
+        .map(|_| (r2.point_in(lo - grow, hi + grow), r2.dir()))
+        .collect();
+    let mut out = vec![None; batch.len()];
+    bvh.closest_hits(&batch, eps, f32::INFINITY, &mut out);
+    for (&(o, d), got) in batch.iter().zip(&out) {
+        let want = closest_hit_brute_force(tris, o, d, eps, f32::INFINITY);
+        assert_eq!(key(*got), key(want), "batch ray o={o:?} d={d:?}");
+    }
+    for i in 0..surface {
+        let t = &tris[r.below(tris.len())];
+        let (mut u, mut v) = (r.f(), r.f());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let o = t.v0 + t.e1 * u + t.e2 * v;
+        if !o.is_finite() {
+            continue;
+        }
+        let t_min = if i % 4 == 0 { 0.0 } else { eps };
+        one(o, r.dir(), t_min, f32::INFINITY);
+    }
+    hits
+}
+
+fn soup(n: usize, seed: u64, size: f32) -> Vec<TriangleEdges> {
+    let mut r = Rand::new(seed);
+    (0..n)
+        .map(|_| {
+            let v0 = r.point_in(Vec3::splat(-1.0), Vec3::splat(1.0));
+            TriangleEdges::from_edges(
+                v0,
+                r.dir() * r.range(0.0, size),
+                r.dir() * r.range(0.0, size),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn empty_and_single() {
+    let bvh = Bvh::build(&[]);
+    assert_eq!(
+        bvh.closest_hit(Vec3::ZERO, Vec3::Z, 0.0, f32::INFINITY),
+        None
+    );
+    assert_eq!(bvh.node_count(), 0);
+    check(&soup(1, 1, 0.5), 500, 20, 1);
+}
+
+#[test]
+fn small_soups() {
+    for n in [2, 7, 8, 9, 31, 32, 33, 100, 1000] {
+        let hits = check(&soup(n, n as u64, 0.3), 2000, 200, n as u64);
+        assert!(hits > 0);
+    }
+}
+
+#[test]
+fn cornell_box_equals_brute_force() {
+    let tris = edges(&cornell_box());
+    let hits = check(&tris, 20_000, 2000, 3);
+    assert!(hits > 10_000, "{hits} hits");
+}
+
+#[test]
+fn soup_10k() {
+    check(&soup(10_000, 10, 0.1), 3000, 1000, 10);
+}
+
+#[test]
+fn sphere_in_box_100k() {
+    let mut tris = cornell_box();
+    tris.extend(geodesic_sphere(Vec3::new(0.1, 0.2, 0.0), 0.5, 100_000));
+    let tris = edges(&tris);
+    assert!(tris.len() > 100_000);
+    check(&tris, 1500, 500, 4);
+}
+
+#[test]
+fn terrain_100k() {
+    let tris = edges(&terrain(Vec3::ZERO, [4.0, 4.0], 1.0, 100_000, 5));
+    check(&tris, 1000, 500, 5);
+}
+
+#[test]
+fn flat_zero_thickness_mesh() {
+    // A terrain of height 0: every triangle in the plane y = 0, the BVH's
+    // boxes all flat. Rays in the plane, parallel above it, and through it.
+    let tris = edges(&terrain(
+        Vec3::new(0.3, 0.0, -0.2),
+        [3.0, 2.0],
+        0.0,
+        20_000,
+        6,
+    ));
+    let hits = check(&tris, 3000, 1000, 6);
+    assert!(hits > 0);
+    let bvh = Bvh::build(&tris);
+    let mut r = Rand::new(66);
+    for _ in 0..2000 {
+        let o = r.point_in(Vec3::new(-2.0, 0.0, -2.0), Vec3::new(2.0, 0.0, 2.0));
+        let mut d = r.dir();
+        d.y = 0.0;
+        let d = d.normalize();
+        for o in [o, o + Vec3::Y * 1e-3, o - Vec3::Y * 1e-7] {
+            let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
+            assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+        }
+    }
+    // Axis-aligned rays straight down onto the plane, including onto
+    // shared edges and vertices of the grid (ties broken by index).
+    for i in 0..=40 {
+        for j in 0..=40 {
+            let o = Vec3::new(
+                -1.2 + 0.3 * i as f32 / 4.0,
+                1.0,
+                -1.2 + 0.2 * j as f32 / 4.0,
+            );
+            let want = closest_hit_brute_force(&tris, o, -Vec3::Y, 1e-4, f32::INFINITY);
+            assert_eq!(
+                key(bvh.closest_hit(o, -Vec3::Y, 1e-4, f32::INFINITY)),
+                key(want)
+            );
+        }
+    }
+}
+
+#[test]
+fn degenerate_and_duplicate_triangles() {
+    let mut r = Rand::new(7);
+    let mut tris = soup(3000, 7, 0.2);
+    for i in 0..3000 {
+        let v0 = r.point_in(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let e = r.dir() * 0.3;
+        tris.push(match i % 5 {
+            // A point, a segment, a collinear triangle.
+            0 => TriangleEdges::from_edges(v0, Vec3::ZERO, Vec3::ZERO),
+            1 => TriangleEdges::from_edges(v0, e, Vec3::ZERO),
+            2 => TriangleEdges::from_edges(v0, e, e * 2.0),
+            // An exact duplicate of an earlier triangle: ties go to the
+            // lower index.
+            3 => tris[r.below(3000)],
+            // A needle: almost degenerate.
+            _ => TriangleEdges::from_edges(v0, e, e + Vec3::splat(1e-6)),
+        });
+    }
+    // Non-finite triangles are kept out of the tree but still tested.
+    tris.push(TriangleEdges::from_edges(
+        Vec3::new(f32::NAN, 0.0, 0.0),
+        Vec3::X,
+        Vec3::Y,
+    ));
+    tris.push(TriangleEdges::from_edges(
+        Vec3::ZERO,
+        Vec3::new(f32::INFINITY, 0.0, 0.0),
+        Vec3::Y,
+    ));
+    check(&tris, 4000, 2000, 7);
+}
+
+#[test]
+fn many_triangles_sharing_one_point() {
+    // 20k triangles fanning out from the origin in every direction, and a
+    // second fan around a point they all touch with an edge.
+    let mut r = Rand::new(8);
+    let mut tris = Vec::new();
+    for _ in 0..20_000 {
+        tris.push(TriangleEdges::from_edges(
+            Vec3::ZERO,
+            r.dir() * r.range(0.01, 1.0),
+            r.dir() * r.range(0.01, 1.0),
+        ));
+    }
+    check(&tris, 2000, 500, 8);
+    // Rays aimed exactly at the shared point.
+    let bvh = Bvh::build(&tris);
+    for _ in 0..500 {
+        let o = r.dir() * 2.0;
+        let d = (-o).normalize();
+        let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
+        assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+    }
+}
+
+#[test]
+fn far_and_tiny_scenes() {
+    // Coordinates far from the origin, and a scene a thousandth of a unit big.
+    let far: Vec<TriangleEdges> = soup(2000, 9, 0.1)
+        .into_iter()
+        .map(|t| TriangleEdges {
+            v0: t.v0 * 10.0 + Vec3::new(1000.0, -500.0, 250.0),
+            ..t
+        })
+        .collect();
+    check(&far, 2000, 500, 9);
+    let tiny: Vec<TriangleEdges> = soup(2000, 10, 0.1)
+        .into_iter()
+        .map(|t| TriangleEdges::from_edges(t.v0 * 1e-3, t.e1 * 1e-3, t.e2 * 1e-3))
+        .collect();
+    check(&tiny, 2000, 500, 10);
+}
+
+#[test]
+fn axis_aligned_rays_and_boxes() {
+    // Axis-aligned quads on a lattice hit by axis-aligned rays: slab tests
+    // with zero direction components and rays along box faces.
+    let mut tris = Vec::new();
+    for i in 0..20 {
+        for j in 0..20 {
+            let v0 = Vec3::new(i as f32 * 0.1, j as f32 * 0.1, (i + j) as f32 * 0.05);
+            tris.push(TriangleEdges::from_edges(v0, Vec3::X * 0.1, Vec3::Y * 0.1));
+            tris.push(TriangleEdges::from_edges(
+                v0 + Vec3::new(0.1, 0.1, 0.0),
+                -Vec3::X * 0.1,
+                -Vec3::Y * 0.1,
+            ));
+        }
+    }
+    let bvh = Bvh::build(&tris);
+    for i in 0..=80 {
+        for j in 0..=80 {
+            let (x, y) = (i as f32 * 0.025, j as f32 * 0.025);
+            for (o, d) in [
+                (Vec3::new(x, y, -1.0), Vec3::Z),
+                (Vec3::new(x, y, 3.0), -Vec3::Z),
+                (Vec3::new(-1.0, y, x), Vec3::X),
+                (Vec3::new(x, -1.0, y), Vec3::Y),
+            ] {
+                let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
+                assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+            }
+        }
+    }
+}
+
+#[test]
+fn stats_are_sane() {
+    let tris = edges(&geodesic_sphere(Vec3::ZERO, 1.0, 50_000));
+    let bvh = Bvh::build(&tris);
+    assert_eq!(bvh.triangle_count(), tris.len());
+    assert!(bvh.node_count() > 0);
+    assert!(bvh.pack_count() * 8 >= tris.len());
+    // A full pack is 52 bytes per triangle (v0, e1, e2, n and an index);
+    // packs mostly full and nodes shared: under 80 bytes per triangle.
+    assert!(bvh.bytes() < 80 * tris.len(), "{} bytes", bvh.bytes());
+    assert!(bvh.build_seconds() > 0.0);
+    // The Cornell box is one leaf: no inner node to walk.
+    let cornell = edges(&cornell_box());
+    let b = Bvh::build(&cornell);
+    assert_eq!(b.node_count(), 0);
+    assert_eq!(b.pack_count(), 4);
+}
