@@ -18,10 +18,10 @@ impl PathRng {
     /// The stream for sample `sample` of pixel `pixel` under `seed`.
     #[inline]
     pub fn new(seed: u64, pixel: u32, sample: u32) -> Self {
-        let key = splitmix64(seed ^ splitmix64(((pixel as u64) << 32) | sample as u64));
-        // The stream selector gives every (seed, pixel) its own sequence too.
-        let stream = splitmix64(key ^ 0x9E37_79B9_7F4A_7C15);
-        Self(Pcg32::new(key, stream))
+        // A hashed starting state per (seed, pixel, sample) on the seed's
+        // stream: a path draws a handful of numbers from a period of 2^64.
+        let state = splitmix64(seed ^ splitmix64(((pixel as u64) << 32) | sample as u64));
+        Self(Pcg32::new(state, seed))
     }
 
     /// A uniform number in `[0, 1)` with 24 random bits.

@@ -29,19 +29,33 @@ pub fn diffuse(queue: &mut PathQueue, rows: &[u32], world: &World) {
         let lanes = group.len();
         // Lanes past the last path repeat the first one; their results land
         // in rows past the end of the queue and are never read.
-        let src: [usize; 8] =
-            std::array::from_fn(|l| group[if l < lanes { l } else { 0 }] as usize);
+        let mut src = [group[0] as usize; 8];
+        for (s, &row) in src.iter_mut().zip(group) {
+            *s = row as usize;
+        }
         let gather = |col: &[f32]| gather8(col, &src);
-        let gather3 =
-            |cols: &[Vec<f32>; 3]| V3::new(gather(&cols[0]), gather(&cols[1]), gather(&cols[2]));
 
-        let tris: [usize; 8] = std::array::from_fn(|l| queue.hit[src[l]] as usize);
+        let hit = |l: usize| queue.hit[src[l]] as usize;
+        let tris = [
+            hit(0),
+            hit(1),
+            hit(2),
+            hit(3),
+            hit(4),
+            hit(5),
+            hit(6),
+            hit(7),
+        ];
         let normal: Vec3x8 = V3::new(
             gather8(&world.normals[0], &tris),
             gather8(&world.normals[1], &tris),
             gather8(&world.normals[2], &tris),
         );
-        let brdf = [0, 1, 2].map(|c| gather8(&world.brdf[c], &tris));
+        let brdf = [
+            gather8(&world.brdf[0], &tris),
+            gather8(&world.brdf[1], &tris),
+            gather8(&world.brdf[2], &tris),
+        ];
         let (mut x1, mut x2) = ([0.0f32; 8], [0.0f32; 8]);
         for l in 0..lanes {
             let rng = &mut queue.rng[src[l]];
@@ -49,10 +63,14 @@ pub fn diffuse(queue: &mut PathQueue, rows: &[u32], world: &World) {
             x2[l] = rng.next_f32();
         }
         let (x1, x2) = (f32x8::from(x1), f32x8::from(x2));
-        let o = gather3(&queue.o);
-        let d = gather3(&queue.d);
+        let o = gather3(&queue.o, &src);
+        let d = gather3(&queue.d, &src);
         let t = gather(&queue.t);
-        let beta = [0, 1, 2].map(|c| gather(&queue.beta[c]));
+        let beta = [
+            gather(&queue.beta[0]),
+            gather(&queue.beta[1]),
+            gather(&queue.beta[2]),
+        ];
 
         let front = d.dot(normal).simd_lt(f32x8::ZERO);
         let n = V3::select(front, normal, V3::new(-normal.x, -normal.y, -normal.z));
@@ -89,4 +107,14 @@ fn gather8(col: &[f32], rows: &[usize; 8]) -> f32x8 {
     f32x8::from([
         col[r[0]], col[r[1]], col[r[2]], col[r[3]], col[r[4]], col[r[5]], col[r[6]], col[r[7]],
     ])
+}
+
+/// Rows `rows` of three columns as eight 3-vectors.
+#[inline(always)]
+fn gather3(cols: &[Vec<f32>; 3], rows: &[usize; 8]) -> Vec3x8 {
+    V3::new(
+        gather8(&cols[0], rows),
+        gather8(&cols[1], rows),
+        gather8(&cols[2], rows),
+    )
 }

@@ -40,14 +40,15 @@ pub fn shade(
         let tri = hit[i];
         if tri != MISS {
             let t = tri as usize;
+            let e = world.emission[world.material_of[t] as usize];
             let normal = V3::new(
                 world.normals[0][t],
                 world.normals[1][t],
                 world.normals[2][t],
             );
             let d = V3::new(dx[i], dy[i], dz[i]);
-            if d.dot(normal) < 0.0 {
-                let e = world.emission[world.material_of[tri as usize] as usize];
+            // Most surfaces emit nothing: skip the side test for them.
+            if e != [0.0; 3] && d.dot(normal) < 0.0 {
                 lr[i] += beta[0][i] * e[0];
                 lg[i] += beta[1][i] * e[1];
                 lb[i] += beta[2][i] * e[2];
