@@ -1,17 +1,57 @@
-//! Stage 4, *bounce*: sample each surviving path's next direction, update
-//! its throughput, and compact the live paths to the front of the queue.
+//! Stage 4, *bounce*: compact the live paths into bins by material, then
+//! sample each one's next direction and update its throughput, eight paths
+//! at a time.
 
 use super::World;
-use super::queue::{PathQueue, store8};
+use super::queue::{MISS, PathQueue, load8, store8};
 use crate::geometry::hit_point;
 use crate::real::{V3, Vec3x8};
 use crate::sampling::uniform_hemisphere;
 use std::f32::consts::PI;
+use std::ops::Range;
 use wide::f32x8;
 
-/// Bounce the paths in rows `rows` (ascending) of `queue` off ideal diffuse
-/// surfaces, compacting them to the front of the queue, which then holds
-/// just them. Eight paths at a time:
+/// The live paths, grouped by material model into row ranges of the queue.
+/// Each model has its own pass; today there is one, ideal diffuse.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bins {
+    /// Rows of the paths that hit an ideal diffuse surface.
+    pub diffuse: Range<usize>,
+}
+
+/// Compact the queue and bounce every live path off its surface.
+pub fn bounce(queue: &mut PathQueue, world: &World) {
+    let bins = bin(queue);
+    diffuse(queue, bins.diffuse, world);
+}
+
+/// Drop the retired rows (marked [`MISS`]) and group the live ones by
+/// material model. Each hole is filled with the last live row, so only
+/// retired rows cost a move; the order of paths does not matter (each has
+/// its own random stream, and the film's sums are exact).
+pub fn bin(queue: &mut PathQueue) -> Bins {
+    let (mut i, mut end) = (0, queue.len());
+    loop {
+        while i < end && queue.hit[i] != MISS {
+            i += 1;
+        }
+        while i < end && queue.hit[end - 1] == MISS {
+            end -= 1;
+        }
+        if i >= end {
+            break;
+        }
+        queue.move_row(end - 1, i);
+        end -= 1;
+        i += 1;
+    }
+    queue.set_len(end);
+    // With a second material model, a partition of 0..end by model goes here.
+    Bins { diffuse: 0..end }
+}
+
+/// Bounce the paths in rows `rows` off ideal diffuse surfaces, eight at a
+/// time:
 ///
 /// - the normal is turned to face the incoming ray (diffuse reflection is
 ///   two-sided);
@@ -19,32 +59,22 @@ use wide::f32x8;
 /// - the new direction is uniform on the hemisphere (two numbers from the
 ///   path's stream);
 /// - the throughput is multiplied by `(ρ/π) · cos θ / (1/2π)`.
-///
-/// Group `g` reads rows `rows[8g..8g+8]` and writes rows `8g..8g+8`. The
-/// rows are ascending, so `rows[k] >= k`: no row is overwritten before it
-/// is read.
-pub fn diffuse(queue: &mut PathQueue, rows: &[u32], world: &World) {
-    for (g, group) in rows.chunks(8).enumerate() {
-        let i = g * 8;
-        let lanes = group.len();
-        // Lanes past the last path repeat the first one; their results land
-        // in rows past the end of the queue and are never read.
-        let mut src = [group[0] as usize; 8];
-        for (s, &row) in src.iter_mut().zip(group) {
-            *s = row as usize;
-        }
-        let gather = |col: &[f32]| gather8(col, &src);
-
-        let hit = |l: usize| queue.hit[src[l]] as usize;
+pub fn diffuse(queue: &mut PathQueue, rows: Range<usize>, world: &World) {
+    for i in rows.clone().step_by(8) {
+        let lanes = (rows.end - i).min(8);
+        // Lanes past the last path compute garbage that is stored past the
+        // live rows (the columns are padded to a multiple of 8) and never
+        // read; they borrow the first lane's triangle for the lookups.
+        let tri = |l: usize| queue.hit[i + if l < lanes { l } else { 0 }] as usize;
         let tris = [
-            hit(0),
-            hit(1),
-            hit(2),
-            hit(3),
-            hit(4),
-            hit(5),
-            hit(6),
-            hit(7),
+            tri(0),
+            tri(1),
+            tri(2),
+            tri(3),
+            tri(4),
+            tri(5),
+            tri(6),
+            tri(7),
         ];
         let normal: Vec3x8 = V3::new(
             gather8(&world.normals[0], &tris),
@@ -57,20 +87,17 @@ pub fn diffuse(queue: &mut PathQueue, rows: &[u32], world: &World) {
             gather8(&world.brdf[2], &tris),
         ];
         let (mut x1, mut x2) = ([0.0f32; 8], [0.0f32; 8]);
-        for l in 0..lanes {
-            let rng = &mut queue.rng[src[l]];
+        for (l, rng) in queue.rng[i..i + lanes].iter_mut().enumerate() {
             x1[l] = rng.next_f32();
             x2[l] = rng.next_f32();
         }
         let (x1, x2) = (f32x8::from(x1), f32x8::from(x2));
-        let o = gather3(&queue.o, &src);
-        let d = gather3(&queue.d, &src);
-        let t = gather(&queue.t);
-        let beta = [
-            gather(&queue.beta[0]),
-            gather(&queue.beta[1]),
-            gather(&queue.beta[2]),
-        ];
+        let load3 = |cols: &[Vec<f32>; 3]| {
+            V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
+        };
+        let o = load3(&queue.o);
+        let d = load3(&queue.d);
+        let t = load8(&queue.t, i);
 
         let front = d.dot(normal).simd_lt(f32x8::ZERO);
         let n = V3::select(front, normal, V3::new(-normal.x, -normal.y, -normal.z));
@@ -79,25 +106,17 @@ pub fn diffuse(queue: &mut PathQueue, rows: &[u32], world: &World) {
         let cos_theta = x1; // by construction (see the reference tracer)
         let probability = f32x8::splat(1.0 / (2.0 * PI));
 
-        // Compact: the group's paths move to rows i..i + lanes.
-        for l in 0..lanes {
-            queue.pixel[i + l] = queue.pixel[src[l]];
-            queue.rng[i + l] = queue.rng[src[l]].clone();
-            for col in queue.radiance.iter_mut() {
-                col[i + l] = col[src[l]];
-            }
-        }
         for (col, v) in queue.o.iter_mut().zip([origin.x, origin.y, origin.z]) {
             store8(col, i, v);
         }
         for (col, v) in queue.d.iter_mut().zip([dir.x, dir.y, dir.z]) {
             store8(col, i, v);
         }
-        for ((col, beta), brdf) in queue.beta.iter_mut().zip(beta).zip(brdf) {
-            store8(col, i, beta * brdf * cos_theta / probability);
+        for (col, brdf) in queue.beta.iter_mut().zip(brdf) {
+            let beta = load8(col, i) * brdf * cos_theta / probability;
+            store8(col, i, beta);
         }
     }
-    queue.set_len(rows.len());
 }
 
 /// `[col[rows[0]], ..., col[rows[7]]]` as eight lanes.
@@ -107,14 +126,4 @@ fn gather8(col: &[f32], rows: &[usize; 8]) -> f32x8 {
     f32x8::from([
         col[r[0]], col[r[1]], col[r[2]], col[r[3]], col[r[4]], col[r[5]], col[r[6]], col[r[7]],
     ])
-}
-
-/// Rows `rows` of three columns as eight 3-vectors.
-#[inline(always)]
-fn gather3(cols: &[Vec<f32>; 3], rows: &[usize; 8]) -> Vec3x8 {
-    V3::new(
-        gather8(&cols[0], rows),
-        gather8(&cols[1], rows),
-        gather8(&cols[2], rows),
-    )
 }

@@ -4,10 +4,10 @@
 //!
 //! 1. [`generate`](generate::generate) camera rays into a [`PathQueue`];
 //! 2. then, once per depth: [`intersect`](intersect::intersect) every ray
-//!    (8 triangles at a time), [`shade`](shade::shade) (emission, retire
-//!    finished paths, bin the rest by material), and
-//!    [`bounce`](bounce::diffuse) (compact the live paths, then next
-//!    direction and throughput, 8 paths at a time).
+//!    (8 triangles at a time), [`shade`](shade::shade) (emission; retire
+//!    the paths that escaped or are done), and [`bounce`](bounce::bounce)
+//!    (compact the live paths into bins by material, then each bin's pass:
+//!    next direction and throughput, 8 paths at a time).
 //!
 //! Threads take tiles of pixels; a tile's batches own their queues and
 //! write the tile's pixel sums without locks. Every number a path draws comes
@@ -27,7 +27,6 @@ use crate::film::PixelSum;
 use crate::render::{Counters, StageSeconds};
 use crate::scene::Scene;
 use queue::PathQueue;
-use shade::Bins;
 use std::f32::consts::PI;
 use std::ops::Range;
 use std::sync::Arc;
@@ -73,11 +72,10 @@ impl World {
     }
 }
 
-/// Per-thread working memory: the queue, the material bins, and room for
-/// the hierarchy's batched queries.
+/// Per-thread working memory: the queue and room for the hierarchy's
+/// batched queries.
 pub struct Scratch {
     queue: PathQueue,
-    bins: Bins,
     rays: intersect::RayBatch,
 }
 
@@ -86,7 +84,6 @@ impl Scratch {
     pub fn new(batch_size: usize) -> Self {
         Self {
             queue: PathQueue::with_capacity(batch_size),
-            bins: Bins::default(),
             rays: intersect::RayBatch::default(),
         }
     }
@@ -170,7 +167,7 @@ impl WavefrontEngine {
         sums: &mut [PixelSum],
         counters: &mut Counters,
     ) {
-        let Scratch { queue, bins, rays } = scratch;
+        let Scratch { queue, rays } = scratch;
         let clock = Instant::now();
         generate::generate(queue, camera, width, seed, pixels, samples);
         counters.paths += queue.len() as u64;
@@ -188,10 +185,13 @@ impl WavefrontEngine {
             intersect::intersect(queue, &self.world, rays);
             let t1 = Instant::now();
             let last = depth + 1 >= self.max_depth;
-            counters.invalid_samples +=
-                shade::shade(queue, &self.world, last, tile_start, sums, bins);
+            counters.invalid_samples += shade::shade(queue, &self.world, last, tile_start, sums);
             let t2 = Instant::now();
-            bounce::diffuse(queue, &bins.diffuse, &self.world);
+            if last {
+                queue.set_len(0);
+            } else {
+                bounce::bounce(queue, &self.world);
+            }
             let t3 = Instant::now();
             stages.intersect += (t1 - clock).as_secs_f64();
             stages.shade += (t2 - t1).as_secs_f64();

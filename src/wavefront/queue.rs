@@ -104,6 +104,20 @@ impl PathQueue {
             )
     }
 
+    /// Copy path `from` into row `to` (the intersect outputs too).
+    #[inline]
+    pub fn move_row(&mut self, from: usize, to: usize) {
+        self.pixel[to] = self.pixel[from];
+        self.rng[to] = self.rng[from].clone();
+        for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
+            for col in cols.iter_mut() {
+                col[to] = col[from];
+            }
+        }
+        self.t[to] = self.t[from];
+        self.hit[to] = self.hit[from];
+    }
+
     /// The radiance gathered by path `i`.
     #[inline]
     pub fn radiance_of(&self, i: usize) -> glam::Vec3 {

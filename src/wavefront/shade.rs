@@ -1,45 +1,34 @@
-//! Stage 3, *shade/emit*: add what each hit surface emits, retire the paths
-//! that escaped or reached the last depth, and bin the rest by material.
+//! Stage 3, *shade/emit*: add what each hit surface emits, and retire the
+//! paths that escaped or reached the last depth.
 
 use super::World;
 use super::queue::{MISS, PathQueue};
 use crate::film::{PixelSum, accumulate};
 use crate::real::V3;
 
-/// The paths that go on to the bounce stage, binned by material model. Each
-/// model has its own bounce pass; today there is one, ideal diffuse.
-#[derive(Clone, Debug, Default)]
-pub struct Bins {
-    /// Queue rows (ascending) of paths that hit an ideal diffuse surface.
-    pub diffuse: Vec<u32>,
-}
-
-/// For every path: a miss retires it (its radiance goes to its pixel); a hit
-/// seen from the front adds `throughput × emitted radiance`. When `last` is
-/// set (the next ray would exceed the maximum depth) every path retires;
-/// otherwise the survivors are binned for the bounce stage.
-/// Returns the number of samples refused as invalid.
+/// For every path: a hit seen from the front adds `throughput × emitted
+/// radiance`. A miss retires the path — its radiance is one sample of its
+/// pixel — and so does every hit when `last` is set (the next ray would
+/// exceed the maximum depth). Retired rows are marked [`MISS`] for the
+/// bounce stage to drop. Returns the number of samples refused as invalid.
 pub fn shade(
     queue: &mut PathQueue,
     world: &World,
     last: bool,
     tile_start: u32,
     sums: &mut [PixelSum],
-    bins: &mut Bins,
 ) -> u64 {
-    bins.diffuse.clear();
     let mut invalid = 0;
     let n = queue.len();
     // Columns cut to the live rows: the loop below needs no bounds checks.
-    let hit = &queue.hit[..n];
+    let hit = &mut queue.hit[..n];
     let pixel = &queue.pixel[..n];
     let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
     let beta = queue.beta.each_ref().map(|c| &c[..n]);
     let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
     for i in 0..n {
-        let tri = hit[i];
-        if tri != MISS {
-            let t = tri as usize;
+        if hit[i] != MISS {
+            let t = hit[i] as usize;
             let e = world.emission[world.material_of[t] as usize];
             let normal = V3::new(
                 world.normals[0][t],
@@ -54,9 +43,9 @@ pub fn shade(
                 lb[i] += beta[2][i] * e[2];
             }
             if !last {
-                bins.diffuse.push(i as u32);
                 continue;
             }
+            hit[i] = MISS;
         }
         // Retire: the path's radiance is one sample of its pixel.
         let sum = &mut sums[(pixel[i] - tile_start) as usize];
