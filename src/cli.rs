@@ -1,7 +1,7 @@
 //! The command line: `wavetrace render ...` (the default command).
 
 use crate::error::{Error, Result};
-use crate::output::{ImageFormat, check_writable, write_atomic, write_image};
+use crate::output::{check_writable, write_atomic};
 use crate::profile::Profile;
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::scene::Scene;
@@ -32,6 +32,8 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to an image.
     Render(RenderArgs),
+    /// Merge the partial files of shards into the image of the whole render.
+    Merge(crate::merge::MergeArgs),
 }
 
 /// Options of `wavetrace render`. Flags override the profile, which
@@ -59,19 +61,23 @@ pub struct RenderArgs {
     /// Random seed.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: SLURM_CPUS_PER_TASK if set, else all cores).
     #[arg(long)]
     pub threads: Option<usize>,
     /// Path tracer.
     #[arg(long, value_enum)]
     pub engine: Option<Engine>,
-    /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float).
-    /// Default: the scene file's name with .png (cornell.png).
+    /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float), or
+    /// .wtacc for a partial file. Default: the scene file's name with .png
+    /// (cornell.png), or none when --partial is given.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write the render's figures as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// Farm options: sample ranges, shards, partial files.
+    #[command(flatten)]
+    pub farm: crate::shard::ShardArgs,
 }
 
 /// Run the command line.
@@ -79,6 +85,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         None => render(cli.render),
         Some(Command::Render(args)) => render(args),
+        Some(Command::Merge(args)) => crate::merge::run(args),
     }
 }
 
@@ -86,8 +93,10 @@ pub fn run(cli: Cli) -> Result<()> {
 struct Job {
     scene: Scene,
     settings: RenderSettings,
-    out: PathBuf,
+    out: Option<PathBuf>,
     stats: Option<PathBuf>,
+    work: crate::shard::SampleWork,
+    partial: Option<PathBuf>,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -113,11 +122,23 @@ fn plan(args: RenderArgs) -> Result<Job> {
         .or(profile.max_depth)
         .unwrap_or(settings.max_depth);
     settings.seed = args.seed.or(profile.seed).unwrap_or(settings.seed);
-    settings.threads = args.threads.unwrap_or(settings.threads);
+    let env = |name: &str| std::env::var(name).ok();
+    settings.threads = match args.threads {
+        Some(threads) => threads,
+        None => crate::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+    };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     settings.validate()?;
+    let work = args.farm.resolve(settings.spp, &env)?;
+    let partial = args.farm.partial.clone();
+    if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
+        return Err(Error::Settings(format!(
+            "rendering samples {}..{} only: name the partial file to write with --partial FILE.wtacc",
+            work.range.start, work.range.end
+        )));
+    }
 
-    let out = args.out.unwrap_or_else(|| {
+    let default_out = (args.out.is_none() && partial.is_none()).then(|| {
         let stem = args
             .scene
             .as_ref()
@@ -125,8 +146,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
             .map_or("cornell".into(), |s| s.to_string_lossy().into_owned());
         PathBuf::from(format!("{stem}.png"))
     });
-    ImageFormat::from_path(&out)?;
-    check_writable(&out)?;
+    let out = args.out.or(default_out);
+    if let Some(out) = &out {
+        crate::shard::check_output_format(out)?;
+        check_writable(out)?;
+    }
+    if let Some(partial) = &partial {
+        crate::shard::check_partial_path(partial)?;
+        check_writable(partial)?;
+    }
     if let Some(stats) = &args.stats {
         check_writable(stats)?;
     }
@@ -135,14 +163,25 @@ fn plan(args: RenderArgs) -> Result<Job> {
         settings,
         out,
         stats: args.stats,
+        work,
+        partial,
     })
 }
 
 fn render(args: RenderArgs) -> Result<()> {
     let job = plan(args)?;
     let s = &job.settings;
+    let w = &job.work;
+    let part = match w.shard {
+        _ if w.range == (0..s.spp) => String::new(),
+        Some((i, n)) => format!(
+            " (samples {}..{}: shard {i}/{n})",
+            w.range.start, w.range.end
+        ),
+        None => format!(" (samples {}..{})", w.range.start, w.range.end),
+    };
     eprintln!(
-        "wavetrace: {} at {}x{}, {} spp, max depth {}, seed {}, {} thread(s), {} engine",
+        "wavetrace: {} at {}x{}, {} spp{part}, max depth {}, seed {}, {} thread(s), {} engine",
         job.scene.name,
         s.width,
         s.height,
@@ -153,9 +192,26 @@ fn render(args: RenderArgs) -> Result<()> {
         s.engine.name()
     );
     let renderer = Renderer::new(&job.scene, s)?;
-    let (film, counters, elapsed) = renderer.render();
-    let seconds = elapsed.as_secs_f64();
-    write_image(&job.out, film.width, film.height, &film.to_rgb())?;
+    let mut film = renderer.new_film();
+    let start = std::time::Instant::now();
+    let counters = renderer.render_samples(w.range.clone(), &mut film);
+    let seconds = start.elapsed().as_secs_f64();
+    let meta = crate::film::AccMeta {
+        settings_hash: s.image_hash(&job.scene),
+        spp: Some(s.spp),
+        shard: w.shard,
+    };
+    if let Some(out) = &job.out {
+        crate::shard::write_output(out, &film, &meta)?;
+    }
+    if let Some(partial) = &job.partial {
+        film.save_with_meta(partial, &meta)?;
+    }
+    let written = job
+        .out
+        .as_ref()
+        .or(job.partial.as_ref())
+        .expect("an output");
 
     let stats = RenderStats {
         version: env!("CARGO_PKG_VERSION"),
@@ -173,7 +229,7 @@ fn render(args: RenderArgs) -> Result<()> {
         rays_per_second: counters.rays as f64 / seconds,
         paths_per_second: counters.paths as f64 / seconds,
         invalid_samples: film.invalid_samples,
-        output: Some(job.out.display().to_string()),
+        output: Some(written.display().to_string()),
     };
     if film.invalid_samples > 0 {
         eprintln!(
@@ -188,7 +244,7 @@ fn render(args: RenderArgs) -> Result<()> {
         stats.paths_per_second / 1e6,
         counters.rays,
         stats.rays_per_second / 1e6,
-        job.out.display()
+        written.display()
     );
     if let Some(path) = &job.stats {
         write_atomic(path, |w| w.write_all(stats.to_json().as_bytes()))?;

@@ -10,6 +10,7 @@
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
+//! - [`shard`], [`merge`]: render farms: sample-range shards, exact merges;
 //! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
 //!
 //! [`real`] holds the one numeric source shared by scalar and 8-wide code.
@@ -21,6 +22,7 @@ pub mod cli;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod merge;
 pub mod output;
 pub mod profile;
 pub mod real;
@@ -28,6 +30,7 @@ pub mod reference;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod shard;
 pub mod stats;
 
 pub use error::{Error, Result};
