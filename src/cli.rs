@@ -97,6 +97,7 @@ struct Job {
     stats: Option<PathBuf>,
     work: crate::shard::SampleWork,
     partial: Option<PathBuf>,
+    check: bool,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -165,6 +166,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         stats: args.stats,
         work,
         partial,
+        check: args.farm.check,
     })
 }
 
@@ -192,6 +194,10 @@ fn render(args: RenderArgs) -> Result<()> {
         s.engine.name()
     );
     let renderer = Renderer::new(&job.scene, s)?;
+    if job.check {
+        println!("check: ok, nothing rendered");
+        return Ok(());
+    }
     let mut film = renderer.new_film();
     let start = std::time::Instant::now();
     let counters = renderer.render_samples(w.range.clone(), &mut film);

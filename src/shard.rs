@@ -60,7 +60,8 @@ pub enum ShardError {
     ZeroCount,
     /// A shard index that is not below the shard count.
     #[error(
-        "shard index {index} is not below the shard count {count} (indices run from 0 to {count} - 1)"
+        "shard index {index} is not below the shard count {count} (indices run from 0 to {})",
+        .count - 1
     )]
     IndexNotBelowCount {
         /// The shard index.
@@ -267,6 +268,11 @@ pub struct ShardArgs {
     /// With --partial and no --out, no image is written.
     #[arg(long, value_name = "FILE.wtacc")]
     pub partial: Option<PathBuf>,
+    /// Check the scene, the settings, the shard and the outputs, say what
+    /// would be rendered, and exit without rendering (e.g. before
+    /// submitting a farm job).
+    #[arg(long)]
+    pub check: bool,
 }
 
 /// The samples a render covers, resolved from [`ShardArgs`].
@@ -466,6 +472,7 @@ mod tests {
             shard,
             shard_count,
             partial: None,
+            check: false,
         };
         assert_eq!(
             args(None, None, None).resolve(64, &none).unwrap().range,
