@@ -343,6 +343,8 @@ pub enum MergeError {
 }
 
 #[cfg(test)]
+// Films hold lists of sample ranges; a list of one range is what is meant.
+#[allow(clippy::single_range_in_vec_init)]
 mod tests {
     use super::*;
 
@@ -380,6 +382,78 @@ mod tests {
         f.add_range(10..12);
         assert_eq!(f.ranges, vec![0..8, 10..12]);
         assert_eq!(f.samples_per_pixel(), 10);
+    }
+
+    fn film_of(ranges: &[Range<u32>], value: u128) -> Film {
+        let mut f = Film::new(2, 1);
+        f.sums = vec![[value, value + 1, value + 2], [value * 3, 0, 1]];
+        for r in ranges {
+            f.add_range(r.clone());
+        }
+        f
+    }
+
+    #[test]
+    fn merge_adds_sums_ranges_and_invalid_counts() {
+        let mut a = film_of(&[0..4], 10);
+        let mut b = film_of(&[4..6, 8..9], 7);
+        b.invalid_samples = 2;
+        a.merge(&b).unwrap();
+        assert_eq!(a.sums, vec![[17, 19, 21], [51, 0, 2]]);
+        assert_eq!(a.ranges, vec![0..6, 8..9]);
+        assert_eq!(a.invalid_samples, 2);
+    }
+
+    #[test]
+    fn merge_refuses_overlaps_and_other_sizes_changing_nothing() {
+        let mut a = film_of(&[0..4, 8..12], 10);
+        let before = a.clone();
+        assert_eq!(
+            a.merge(&film_of(&[4..9], 1)),
+            Err(MergeError::Overlap {
+                theirs: 4..9,
+                ours: 8..12
+            })
+        );
+        assert!(matches!(
+            a.merge(&Film::new(1, 2)),
+            Err(MergeError::Size { .. })
+        ));
+        assert_eq!(a, before);
+    }
+
+    #[test]
+    fn meta_round_trips_and_plain_saves_are_unchanged() {
+        let dir = std::env::temp_dir().join(format!("wavetrace-film-meta-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = film_of(&[16..32], 5);
+        let meta = AccMeta {
+            settings_hash: 0xabc,
+            spp: Some(64),
+            shard: Some((1, 4)),
+        };
+        let (with, plain) = (dir.join("with.wtacc"), dir.join("plain.wtacc"));
+        f.save_with_meta(&with, &meta).unwrap();
+        f.save(&plain, 0xabc).unwrap();
+        assert_eq!(
+            Film::load_with_meta(&with, Some(0xabc)).unwrap(),
+            (f.clone(), meta)
+        );
+        let (g, plain_meta) = Film::load_with_meta(&plain, None).unwrap();
+        assert_eq!((g, plain_meta), (f.clone(), AccMeta::new(0xabc)));
+        // A file without the new fields has none of their keys in its header.
+        let bytes = std::fs::read(&plain).unwrap();
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(!text.contains("\"spp\"") && !text.contains("\"shard\""));
+        // A range beyond the header's spp is refused as corrupt.
+        let bad = AccMeta {
+            spp: Some(20),
+            ..meta
+        };
+        f.save_with_meta(&with, &bad).unwrap();
+        let e = Film::load_with_meta(&with, None).unwrap_err().to_string();
+        assert!(e.contains("with.wtacc") && e.contains("20-sample"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

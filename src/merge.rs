@@ -290,6 +290,8 @@ pub fn run(args: MergeArgs) -> Result<()> {
 }
 
 #[cfg(test)]
+// Films hold lists of sample ranges; a list of one range is what is meant.
+#[allow(clippy::single_range_in_vec_init)]
 mod tests {
     use super::*;
 
