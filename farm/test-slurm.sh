@@ -4,8 +4,8 @@
 #   bash farm/test-slurm.sh        (as root; .ci/run runs it after cargo test)
 #
 # 1. Installs Slurm and MUNGE from Debian's packages (slurm-wlm, munge) if
-#    they are not there. Without root or apt-get, or if the install fails,
-#    it says SKIPPED, loudly, and exits 0.
+#    they are not there. Not root, no apt-get, or a failed install: it says
+#    SKIPPED, loudly, and exits 0.
 # 2. Starts a one-node cluster on 127.0.0.1 in a temporary directory:
 #    munged (own key and socket), slurmctld and slurmd, with a minimal
 #    slurm.conf written here (free ports, proctrack/linuxproc, no cgroups,
@@ -42,18 +42,19 @@ skip() {
 }
 
 # --- 1. Slurm and MUNGE -------------------------------------------------------
+# The cluster runs its daemons and jobs as root (SlurmUser=root).
+[ "$(id -u)" = 0 ] || skip "not root: cannot install slurm-wlm and munge or run slurmctld and slurmd as SlurmUser=root"
 missing=()
 for tool in munged slurmctld slurmd sbatch squeue sinfo scontrol scancel; do
     command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
 done
 if [ ${#missing[@]} -gt 0 ]; then
-    [ "$(id -u)" = 0 ] || skip "not root, cannot install slurm-wlm and munge (missing: ${missing[*]})"
     command -v apt-get >/dev/null 2>&1 || skip "no apt-get, cannot install slurm-wlm and munge"
     say "installing slurm-wlm and munge (missing: ${missing[*]})"
     export DEBIAN_FRONTEND=noninteractive
     apt_install() {
         timeout 900 apt-get -q -o DPkg::Lock::Timeout=300 install -y --no-install-recommends \
-            slurm-wlm munge >/tmp/wavetrace-slurm-apt.log 2>&1
+            slurm-wlm munge >>/tmp/wavetrace-slurm-apt.log 2>&1
     }
     if ! apt_install; then
         timeout 600 apt-get -q -o DPkg::Lock::Timeout=300 update >>/tmp/wavetrace-slurm-apt.log 2>&1
@@ -295,6 +296,6 @@ echo "test-slurm: Cornell box ${SIZE}x${SIZE}, ${SPP} spp, seed 7, one node with
 echo "test-slurm:   single local run (--threads $CPUS):                              ${SINGLE_SECONDS} s"
 echo "test-slurm:   4-shard Slurm array (1 CPU each), submit to last shard done: ${FIRST_ARRAY} s"
 echo "test-slurm:   4-shard Slurm array + merge job, submit to merged image:     ${FIRST_FARM} s"
-echo "test-slurm:   the shards' own render time (from their logs): ${SHARD_TIMES}; the rest is"
-echo "test-slurm:   Slurm's scheduling (a pass every few seconds: 2 waves of 2 tasks, then the merge)"
+echo "test-slurm:   the shards' own render time (from their logs): ${SHARD_TIMES};"
+echo "test-slurm:   the rest is Slurm's scheduling and job launch (a scheduler pass every few seconds)"
 echo "slurm-farm: 1 passed, 0 failed"

@@ -17,6 +17,8 @@
 //!   `SLURM_ARRAY_TASK_COUNT`, which needs a contiguous array (`--array=1-8`).
 //! - Kubernetes Indexed Jobs: `JOB_COMPLETION_INDEX` with `--shard-count N`.
 //!
+//! When both are set, Slurm's variables win.
+//!
 //! `SLURM_CPUS_PER_TASK` sets the thread count when `--threads` is not
 //! given ([`threads_from_env`]).
 
