@@ -520,3 +520,44 @@ fn merge_refuses_truncated_and_corrupt_files_naming_them() {
     assert!(e.contains("cut.wtacc: checksum mismatch"), "{e}");
     assert!(!out.exists());
 }
+
+#[test]
+fn merge_takes_spp_for_parts_that_do_not_record_it() {
+    let dir = scratch("nospp");
+    // Partial films saved with Film::save (as checkpoints are): no spp.
+    let scene = Scene::cornell();
+    let mut settings = RenderSettings::for_scene(&scene);
+    (
+        settings.width,
+        settings.height,
+        settings.spp,
+        settings.threads,
+    ) = (8, 8, 8, 1);
+    let renderer = Renderer::new(&scene, &settings).unwrap();
+    let hash = settings.image_hash(&scene);
+    let parts: Vec<PathBuf> = [0..3, 3..8]
+        .into_iter()
+        .enumerate()
+        .map(|(k, range)| {
+            let mut film = renderer.new_film();
+            renderer.render_samples(range, &mut film);
+            let path = dir.join(format!("ckpt-{k}.wtacc"));
+            film.save(&path, hash).unwrap();
+            path
+        })
+        .collect();
+    let out = dir.join("out.wtacc");
+    let e = String::from_utf8(merge(&parts, &["--out", p(&out)]).stderr).unwrap();
+    assert!(e.contains("pass --spp N"), "{e}");
+    let e = String::from_utf8(merge(&parts, &["--out", p(&out), "--spp", "9"]).stderr).unwrap();
+    assert!(e.contains("missing samples 8..9 of 0..9"), "{e}");
+    let e = String::from_utf8(merge(&parts, &["--out", p(&out), "--spp", "7"]).stderr).unwrap();
+    assert!(
+        e.contains("ckpt-1.wtacc: holds samples up to 8, beyond --spp 7"),
+        "{e}"
+    );
+    ok(merge(&parts, &["--out", p(&out), "--spp", "8"]));
+    let (merged, meta) = Film::load_with_meta(&out, Some(hash)).unwrap();
+    assert_eq!(merged, renderer.render().0);
+    assert_eq!(meta.spp, Some(8));
+}
