@@ -125,6 +125,16 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
             message,
         };
         let (film, meta) = Film::load_with_meta(path, None)?;
+        if let Some((_, first_meta)) = &merged
+            && meta.settings_hash != first_meta.settings_hash
+        {
+            return Err(bad(format!(
+                "made by a render of another scene or other settings than {} (settings hash {:032x}, expected {:032x})",
+                first_path.display(),
+                meta.settings_hash,
+                first_meta.settings_hash
+            )));
+        }
         if let Some(part_spp) = meta.spp {
             match spp_from {
                 Some((s, from)) if s != part_spp => {
@@ -158,15 +168,7 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
         origins.extend(film.ranges.iter().map(|r| (r.clone(), path.as_path())));
         match &mut merged {
             None => merged = Some((film, meta)),
-            Some((total, total_meta)) => {
-                if meta.settings_hash != total_meta.settings_hash {
-                    return Err(bad(format!(
-                        "made by a render of another scene or other settings than {} (settings hash {:032x}, expected {:032x})",
-                        first_path.display(),
-                        meta.settings_hash,
-                        total_meta.settings_hash
-                    )));
-                }
+            Some((total, _)) => {
                 total.merge(&film).map_err(|e| match e {
                     MergeError::Size { .. } => {
                         bad(format!("{e} (the size of {})", first_path.display()))
