@@ -108,6 +108,12 @@ cleanup() {
     stop_pid slurmctld "$SLURMCTLD_PID"
     stop_pid munged "$MUNGED_PID"
     if [ "${WT_KEEP_TMP:-0}" = 1 ]; then say "kept $T"; else rm -rf "$T"; fi
+    # The verdict comes last, after the daemons are stopped.
+    if [ "$rc" = 0 ]; then
+        echo "slurm-farm: 1 passed, 0 failed"
+    else
+        echo "slurm-farm: 0 passed, 1 failed"
+    fi
     exit "$rc"
 }
 trap cleanup EXIT
@@ -124,7 +130,6 @@ show_logs() {
 fail() {
     echo "test-slurm: FAILED: $*"
     show_logs
-    echo "slurm-farm: 0 passed, 1 failed"
     exit 1
 }
 
@@ -298,4 +303,3 @@ echo "test-slurm:   4-shard Slurm array (1 CPU each), submit to last shard done:
 echo "test-slurm:   4-shard Slurm array + merge job, submit to merged image:     ${FIRST_FARM} s"
 echo "test-slurm:   the shards' own render time (from their logs): ${SHARD_TIMES};"
 echo "test-slurm:   the rest is Slurm's scheduling and job launch (a scheduler pass every few seconds)"
-echo "slurm-farm: 1 passed, 0 failed"
