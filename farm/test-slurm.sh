@@ -279,11 +279,14 @@ check_identical() {
 }
 check_identical "4-shard array"
 FIRST_ARRAY=$ARRAY_SECONDS FIRST_FARM=$FARM_SECONDS
-# The shards ran with --cpus-per-task=1: SLURM_CPUS_PER_TASK set their threads.
-grep -q ' 1 thread(s)' "$T/parts/shard-0.log" || fail "shard 0 did not run 1 thread (SLURM_CPUS_PER_TASK=1)"
-# The shards' own render times, from their logs, apart from Slurm's scheduling.
-SHARD_TIMES=$(sed -n 's/^rendered in \([0-9.]*\) s.*/\1/p' "$T"/parts/shard-*.log |
-    awk '{ s += $1; if ($1 > m) m = $1 } END { printf "sum %.2f s, longest %.2f s", s, m }')
+# The shards ran with --cpus-per-task=1: SLURM_CPUS_PER_TASK set their threads
+# (the shards' stats files say; a batch job prints no banner).
+grep -q '"threads": 1,' "$T/parts/part-0.json" || fail "shard 0 did not run 1 thread (SLURM_CPUS_PER_TASK=1)"
+grep -q '"shard": \[' "$T/parts/part-0.json" || fail "shard 0's stats name no shard"
+say "shard 0 log: $(tail -n 1 "$T/parts/shard-0.log")"
+# The shards' own render times, from their stats, apart from Slurm's scheduling.
+SHARD_TIMES=$(sed -n 's/^  "seconds": \([0-9.e+-]*\),$/\1/p' "$T"/parts/part-*.json |
+    awk '{ s += $1; if ($1 > m) m = $1; n++ } END { printf "sum %.2f s, longest %.2f s (%d shards)", s, m, n }')
 
 # --- 4. a failed shard, rerun alone -------------------------------------------------
 rm -f "$T/parts/part-2.wtacc" "$T/merged.png" "$T/merged.wtacc"
@@ -301,5 +304,5 @@ echo "test-slurm: Cornell box ${SIZE}x${SIZE}, ${SPP} spp, seed 7, one node with
 echo "test-slurm:   single local run (--threads $CPUS):                              ${SINGLE_SECONDS} s"
 echo "test-slurm:   4-shard Slurm array (1 CPU each), submit to last shard done: ${FIRST_ARRAY} s"
 echo "test-slurm:   4-shard Slurm array + merge job, submit to merged image:     ${FIRST_FARM} s"
-echo "test-slurm:   the shards' own render time (from their logs): ${SHARD_TIMES};"
+echo "test-slurm:   the shards' own render time (from their stats): ${SHARD_TIMES};"
 echo "test-slurm:   the rest is Slurm's scheduling and job launch (a scheduler pass every few seconds)"

@@ -1,14 +1,20 @@
 //! The command line: `wavetrace render ...` (the default command).
 
 use crate::error::{Error, Result};
+use crate::film::{AccMeta, Film};
 use crate::output::{check_writable, write_atomic};
 use crate::profile::Profile;
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::scene::Scene;
+use crate::session::{Interrupt, Session, SessionOptions, Stop};
+use crate::shard::{SampleWork, write_output};
 use crate::stats::RenderStats;
+use crate::stats::Stages;
 use clap::{Args, Parser, Subcommand};
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 /// wavetrace: a fast, reproducible CPU path tracer.
 #[derive(Debug, Parser)]
@@ -16,7 +22,12 @@ use std::path::PathBuf;
     name = "wavetrace",
     version,
     about,
-    args_conflicts_with_subcommands = true
+    args_conflicts_with_subcommands = true,
+    after_help = "Exit status: 0 when the outputs were written (all samples, or as many as \
+                  --time-limit allowed), or when `merge` wrote its output; 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
+                  143 (SIGTERM) when a signal stopped the render after its current pass, \
+                  the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
+                  leaving the last checkpoint as it was."
 )]
 pub struct Cli {
     /// What to do; `render` when omitted.
@@ -29,8 +40,11 @@ pub struct Cli {
 
 /// wavetrace's commands.
 #[derive(Debug, Subcommand)]
+// Parsed once per process: the size of the render variant does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum Command {
-    /// Render a scene to an image.
+    /// Render a scene (or one shard's sample range of it) to an image or
+    /// a partial file.
     Render(RenderArgs),
     /// Merge the partial files of shards into the image of the whole render.
     Merge(crate::merge::MergeArgs),
@@ -75,29 +89,87 @@ pub struct RenderArgs {
     /// Write the render's figures as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// Print nothing but the final summary (no banner, no progress bar).
+    /// Without a terminal on stderr that is the default.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Stop rendering, after whole sample passes, once the next pass would
+    /// not fit in this many seconds, and write the image with the samples
+    /// done; --spp stays the most that are rendered.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub time_limit: Option<Duration>,
+    /// Save the accumulated samples to this file (a .wtacc partial file of
+    /// the samples done so far) every --checkpoint-every seconds, on SIGINT
+    /// or SIGTERM (then exit with status 130 or 143), and at the end.
+    /// Refused if the file exists, unless it is the --resume file.
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoints [default: 60].
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub checkpoint_every: Option<Duration>,
+    /// Continue the render saved in this checkpoint file (made with the
+    /// same scene and settings, and the same --shard or --samples; --spp
+    /// may grow for a whole render, --threads may differ), and keep
+    /// checkpointing to it unless --checkpoint names another file.
+    #[arg(long, value_name = "FILE")]
+    pub resume: Option<PathBuf>,
+    /// Write the image so far to --out every this many seconds, so a
+    /// viewer can watch it converge (not to be confused with --partial,
+    /// the partial file of a shard).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub write_partial: Option<Duration>,
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
     pub farm: crate::shard::ShardArgs,
 }
 
-/// Run the command line.
-pub fn run(cli: Cli) -> Result<()> {
+/// A positive, finite number of seconds, e.g. `30` or `0.5`.
+fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
+    let seconds: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number of seconds"))?;
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(format!("{text:?}: must be a positive number of seconds"));
+    }
+    Duration::try_from_secs_f64(seconds).map_err(|e| format!("{text:?}: {e}"))
+}
+
+/// Run the command line. Returns the process exit status: 0 when the
+/// outputs were written, 128 + the signal number (130 for SIGINT, 143 for
+/// SIGTERM) when a signal stopped the render (after saving the checkpoint).
+/// Errors are for the caller to print (exit status 1).
+pub fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         None => render(cli.render),
         Some(Command::Render(args)) => render(args),
-        Some(Command::Merge(args)) => crate::merge::run(args),
+        Some(Command::Merge(args)) => crate::merge::run(args).map(|()| ExitCode::SUCCESS),
     }
 }
 
-/// The settings, scene and output a render command asks for, all checked.
+/// The settings, scene and outputs a render command asks for, all checked.
 struct Job {
     scene: Scene,
     settings: RenderSettings,
+    /// The header of every accumulation file the render writes
+    /// (checkpoints, `--partial`, a `.wtacc` `--out`): the settings hash
+    /// ([`RenderSettings::image_hash`], what checkpoints and parts are
+    /// checked against), `spp` and the shard.
+    meta: AccMeta,
+    /// The image or `.wtacc` file to write at the end, if any.
     out: Option<PathBuf>,
-    stats: Option<PathBuf>,
-    work: crate::shard::SampleWork,
+    /// The partial file (`.wtacc`) to write at the end, if any.
     partial: Option<PathBuf>,
+    /// The sample range to render (a shard's, or `0..spp`).
+    work: SampleWork,
+    /// `--check`: check everything, render nothing.
     check: bool,
+    stats: Option<PathBuf>,
+    quiet: bool,
+    /// The film to continue (`--resume`), already checked.
+    resumed: Option<Film>,
+    resume: Option<PathBuf>,
+    session: SessionOptions,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -159,83 +231,257 @@ fn plan(args: RenderArgs) -> Result<Job> {
     if let Some(stats) = &args.stats {
         check_writable(stats)?;
     }
+
+    let meta = AccMeta {
+        settings_hash: settings.image_hash(&scene),
+        spp: Some(settings.spp),
+        shard: work.shard,
+    };
+    let checkpoint = args.checkpoint.clone().or_else(|| args.resume.clone());
+    if args.checkpoint_every.is_some() && checkpoint.is_none() {
+        return Err(Error::Settings(
+            "--checkpoint-every needs --checkpoint FILE (or --resume FILE)".into(),
+        ));
+    }
+    if let Some(path) = &checkpoint {
+        if out.as_deref().is_some_and(|out| same_file(path, out)) {
+            return Err(Error::Settings(format!(
+                "{}: the checkpoint cannot be the output image",
+                path.display()
+            )));
+        }
+        if partial.as_deref().is_some_and(|p| same_file(path, p)) {
+            return Err(Error::Settings(format!(
+                "{}: the checkpoint cannot be the --partial file (a checkpoint is \
+                 work in progress, the partial file a finished shard)",
+                path.display()
+            )));
+        }
+        let resumes_it = args.resume.as_ref().is_some_and(|r| same_file(r, path));
+        if !resumes_it && path.exists() {
+            return Err(Error::Settings(format!(
+                "{}: the checkpoint file exists and may hold another render's work; \
+                 continue it with --resume {0}, or remove it",
+                path.display()
+            )));
+        }
+        check_writable(path)?;
+    }
+    // The checkpoint to continue is read and checked in full before any
+    // work: a missing, truncated, corrupt or foreign one is refused here and
+    // left as it is. Its samples must lie within this render's sample range
+    // (0..spp, or the shard's): a shard's checkpoint resumes that shard.
+    let resumed = match &args.resume {
+        Some(path) => {
+            let (film, saved) = Film::load_with_meta(path, Some(meta.settings_hash))?;
+            crate::session::check_resumable(&film, &settings, &work.range).map_err(
+                |mut message| {
+                    if let Some((i, n)) = saved.shard {
+                        message += &format!(" (it was saved by shard {i}/{n})");
+                    }
+                    Error::Accumulation {
+                        path: path.clone(),
+                        message,
+                    }
+                },
+            )?;
+            Some(film)
+        }
+        None => None,
+    };
+
+    let partial_image = match (args.write_partial, &out) {
+        (None, _) => None,
+        (Some(every), Some(out)) => Some((out.clone(), every)),
+        (Some(_), None) => {
+            return Err(Error::Settings(
+                "--write-partial rewrites the --out file: give --out as well".into(),
+            ));
+        }
+    };
+    let mut session = SessionOptions {
+        samples: Some(work.range.clone()),
+        time_limit: args.time_limit,
+        checkpoint,
+        checkpoint_every: args
+            .checkpoint_every
+            .unwrap_or(crate::session::DEFAULT_CHECKPOINT_EVERY),
+        ..SessionOptions::default()
+    };
+    if let Some((path, every)) = partial_image {
+        session.partial_image = Some(path);
+        session.partial_every = every;
+    }
     Ok(Job {
         scene,
         settings,
+        meta,
         out,
-        stats: args.stats,
-        work,
         partial,
+        work,
         check: args.farm.check,
+        stats: args.stats,
+        quiet: args.quiet,
+        resumed,
+        resume: args.resume,
+        session,
     })
 }
 
-fn render(args: RenderArgs) -> Result<()> {
-    let job = plan(args)?;
-    let s = &job.settings;
-    let w = &job.work;
-    let part = match w.shard {
-        _ if w.range == (0..s.spp) => String::new(),
-        Some((i, n)) => format!(
-            " (samples {}..{}: shard {i}/{n})",
-            w.range.start, w.range.end
-        ),
-        None => format!(" (samples {}..{})", w.range.start, w.range.end),
-    };
-    eprintln!(
-        "wavetrace: {} at {}x{}, {} spp{part}, max depth {}, seed {}, {} thread(s), {} engine",
-        job.scene.name,
-        s.width,
-        s.height,
-        s.spp,
-        s.max_depth,
-        s.seed,
-        s.threads,
-        s.engine.name()
-    );
-    let renderer = Renderer::new(&job.scene, s)?;
-    if job.check {
-        println!("check: ok, nothing rendered");
-        return Ok(());
+/// Whether two paths name the same file (compared as written when either
+/// does not exist yet).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
     }
-    let mut film = renderer.new_film();
-    let start = std::time::Instant::now();
-    let counters = renderer.render_samples(w.range.clone(), &mut film);
-    let seconds = start.elapsed().as_secs_f64();
-    let meta = crate::film::AccMeta {
-        settings_hash: s.image_hash(&job.scene),
-        spp: Some(s.spp),
-        shard: w.shard,
-    };
-    if let Some(out) = &job.out {
-        crate::shard::write_output(out, &film, &meta)?;
-    }
-    if let Some(partial) = &job.partial {
-        film.save_with_meta(partial, &meta)?;
-    }
-    let written = job
-        .out
-        .as_ref()
-        .or(job.partial.as_ref())
-        .expect("an output");
+}
 
+fn render(args: RenderArgs) -> Result<ExitCode> {
+    let load_start = Instant::now();
+    let mut job = plan(args)?;
+    let mut stages = Stages {
+        load: load_start.elapsed().as_secs_f64(),
+        ..Stages::default()
+    };
+    let quiet = job.quiet || !std::io::stderr().is_terminal();
+    job.session.progress = !quiet;
+    let s = &job.settings;
+    if job.check {
+        // What would be rendered, on stdout: the scene, settings, shard,
+        // resume and outputs are all checked by now (and the engine below).
+        Renderer::new(&job.scene, s)?;
+        println!(
+            "check: ok: would render {}; nothing rendered",
+            describe(&job)
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if !quiet {
+        eprintln!("wavetrace: {}", describe(&job));
+    }
+    let setup_start = Instant::now();
+    let renderer = Renderer::new(&job.scene, s)?;
+    let interrupt = Interrupt::install()?;
+    stages.setup = setup_start.elapsed().as_secs_f64();
+
+    let film = job.resumed.take().unwrap_or_else(|| renderer.new_film());
+    let mut session = Session::new(&renderer, job.meta, job.session.clone());
+    let report = session.run(film, &interrupt)?;
+    let film = &report.film;
+    stages.render = report.render_seconds;
+    stages.partial_images = report.partial_seconds;
+    let mut checkpoint_seconds = report.checkpoint_seconds;
+    let mut checkpoints_saved = report.checkpoints_saved;
+    let mut output = None;
+    let mut partial_written = None;
+
+    // The checkpoint is saved first, and it and every output are tried even
+    // if another fails, so a full disk loses as little as possible.
+    let t = Instant::now();
+    let saved = session.save_checkpoint(film);
+    checkpoint_seconds += t.elapsed().as_secs_f64();
+    // (path, final output?, the --partial file?)
+    let mut files: Vec<(PathBuf, bool, bool)> = Vec::new();
+    match report.stop {
+        // Stopped by a signal: no final image or partial file (the
+        // checkpoint holds the work), only the --write-partial image,
+        // brought up to the checkpoint.
+        Stop::Signal(_) => {
+            if let Some(p) = &job.session.partial_image {
+                files.push((p.clone(), false, false));
+            }
+        }
+        Stop::Complete | Stop::TimeLimit => {
+            if let Some(out) = &job.out {
+                files.push((out.clone(), true, false));
+            }
+            if let Some(partial) = &job.partial {
+                files.push((partial.clone(), true, true));
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    for (path, is_final, is_partial_file) in files {
+        let t = Instant::now();
+        let r = write_output(&path, film, &job.meta);
+        let secs = t.elapsed().as_secs_f64();
+        if is_final {
+            stages.output += secs;
+        } else {
+            stages.partial_images += secs;
+        }
+        match r {
+            Ok(()) if is_partial_file => partial_written = Some(path.display().to_string()),
+            Ok(()) => output = Some(path.display().to_string()),
+            Err(e) => errors.push(e),
+        }
+    }
+    // `output` names what was written: --out (or the --write-partial image
+    // after a signal), or else the --partial file.
+    if output.is_none() {
+        output.clone_from(&partial_written);
+    }
+    match saved {
+        Ok(saved) => checkpoints_saved += saved as u32,
+        Err(e) => errors.insert(0, e),
+    }
+    if let Some(last) = errors.pop() {
+        for e in errors {
+            eprintln!("error: {e}");
+        }
+        return Err(last);
+    }
+    stages.checkpoint = checkpoint_seconds;
+
+    let counters = report.counters;
+    let seconds = report.render_seconds;
+    let per_second = |n: u64| {
+        if seconds > 0.0 {
+            n as f64 / seconds
+        } else {
+            0.0
+        }
+    };
     let stats = RenderStats {
         version: env!("CARGO_PKG_VERSION"),
+        git_commit: crate::stats::GIT_COMMIT,
+        cpu_model: crate::stats::cpu_model(),
+        simd: crate::stats::SIMD,
         scene: job.scene.name.clone(),
         width: s.width,
         height: s.height,
         spp: film.samples_per_pixel(),
+        spp_requested: s.spp,
+        spp_resumed: report.start_spp,
+        samples: [job.work.range.start, job.work.range.end],
+        shard: job.work.shard.map(|(i, n)| [i, n]),
         max_depth: s.max_depth,
         seed: s.seed,
         threads: s.threads,
         engine: s.engine.name(),
+        stop: report.stop.name(),
+        time_limit_seconds: job.session.time_limit.map(|d| d.as_secs_f64()),
+        passes: report.passes,
+        longest_pass_seconds: report.longest_pass_seconds,
         seconds,
+        elapsed_seconds: report.elapsed_seconds,
         paths: counters.paths,
         rays: counters.rays,
-        rays_per_second: counters.rays as f64 / seconds,
-        paths_per_second: counters.paths as f64 / seconds,
+        rays_per_second: per_second(counters.rays),
+        paths_per_second: per_second(counters.paths),
         invalid_samples: film.invalid_samples,
-        output: Some(written.display().to_string()),
+        stages,
+        engine_stages: counters.stages.by_name(),
+        checkpoint: job
+            .session
+            .checkpoint
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        checkpoints_saved,
+        partial_images: report.partial_images,
+        output,
+        partial: partial_written,
     };
     if film.invalid_samples > 0 {
         eprintln!(
@@ -243,19 +489,107 @@ fn render(args: RenderArgs) -> Result<()> {
             film.invalid_samples
         );
     }
-    println!(
-        "rendered in {:.3} s: {} paths ({:.3} M paths/s), {} rays ({:.2} M rays/s) -> {}",
-        seconds,
-        counters.paths,
-        stats.paths_per_second / 1e6,
-        counters.rays,
-        stats.rays_per_second / 1e6,
-        written.display()
-    );
+    println!("{}", summary(&job, &report, &stats));
     if let Some(path) = &job.stats {
         write_atomic(path, |w| w.write_all(stats.to_json().as_bytes()))?;
     }
-    Ok(())
+    Ok(ExitCode::from(report.stop.exit_status()))
+}
+
+/// What a render does, in words: the banner on a terminal, and what
+/// `--check` prints.
+fn describe(job: &Job) -> String {
+    let s = &job.settings;
+    let resume = match &job.resume {
+        Some(path) => format!(", resuming {}", path.display()),
+        None => String::new(),
+    };
+    let outputs: Vec<String> = job
+        .out
+        .iter()
+        .chain(&job.partial)
+        .map(|p| p.display().to_string())
+        .collect();
+    format!(
+        "{} at {}x{}, {} spp{}, max depth {}, seed {}, {} thread(s), {} engine{resume} -> {}",
+        job.scene.name,
+        s.width,
+        s.height,
+        s.spp,
+        range_note(&job.work, s.spp),
+        s.max_depth,
+        s.seed,
+        s.threads,
+        s.engine.name(),
+        outputs.join(", ")
+    )
+}
+
+/// " (samples A..B of 0..spp, shard I/N)" when a render does less than
+/// `0..spp`; empty for a whole render.
+fn range_note(work: &SampleWork, spp: u32) -> String {
+    let r = &work.range;
+    match work.shard {
+        _ if *r == (0..spp) => String::new(),
+        Some((i, n)) => format!(
+            " (samples {}..{} of 0..{spp}, shard {i}/{n})",
+            r.start, r.end
+        ),
+        None => format!(" (samples {}..{} of 0..{spp})", r.start, r.end),
+    }
+}
+
+/// The one line a render prints at the end (on stdout).
+fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStats) -> String {
+    let done = stats.spp;
+    // The samples per pixel this run was to hold: --spp, or the shard's.
+    let wanted = job.work.range.end - job.work.range.start;
+    let range = range_note(&job.work, job.settings.spp);
+    let resumed = match (&job.resume, report.start_spp) {
+        (Some(path), n) => format!(" (resumed from {} at {n} spp)", path.display()),
+        (None, _) => String::new(),
+    };
+    let speed = format!(
+        "{} paths ({:.3} M paths/s), {} rays ({:.2} M rays/s)",
+        stats.paths,
+        stats.paths_per_second / 1e6,
+        stats.rays,
+        stats.rays_per_second / 1e6
+    );
+    match report.stop {
+        Stop::Complete | Stop::TimeLimit => {
+            let limit = if report.stop == Stop::TimeLimit {
+                format!(" of {wanted} (time limit)")
+            } else {
+                String::new()
+            };
+            let written: Vec<String> = job
+                .out
+                .iter()
+                .chain(&job.partial)
+                .map(|p| p.display().to_string())
+                .collect();
+            format!(
+                "rendered {done} spp{limit}{range}{resumed} in {:.3} s: {speed} -> {}",
+                stats.seconds,
+                written.join(", ")
+            )
+        }
+        Stop::Signal(sig) => {
+            let saved = match &job.session.checkpoint {
+                Some(path) => format!(
+                    "checkpoint saved to {0}; continue with --resume {0}",
+                    path.display()
+                ),
+                None => "no --checkpoint was given, so the samples are lost".into(),
+            };
+            format!(
+                "stopped by {} at {done} of {wanted} spp{range}{resumed} after {:.3} s: {saved}",
+                crate::session::signal_name(sig),
+                stats.seconds
+            )
+        }
+    }
 }
 
 impl From<clap::Error> for Error {

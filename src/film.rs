@@ -33,7 +33,8 @@ pub fn accumulate(sum: &mut PixelSum, rgb: Vec3) -> bool {
         return false;
     }
     for (s, x) in sum.iter_mut().zip(c) {
-        *s += (x as f64 * FIXED_POINT_SCALE).round() as u64 as u128;
+        // x < 2^31, so x · 2^32 < 2^63 fits an i64 (one instruction to convert).
+        *s += (x as f64 * FIXED_POINT_SCALE).round() as i64 as u128;
     }
     true
 }

@@ -9,9 +9,10 @@
 use crate::real::{Real, V3, Vec3x8};
 use crate::scene::Triangle;
 use glam::Vec3;
-use wide::{f32x8, i32x8};
+use wide::{f32x4, f32x8, i32x8};
 
-/// A triangle as the intersection kernel wants it: one vertex and two edges.
+/// A triangle as the intersection kernel wants it: one vertex, two edges
+/// and their cross product.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleEdges {
     /// Vertex 0.
@@ -20,46 +21,77 @@ pub struct TriangleEdges {
     pub e1: Vec3,
     /// `v2 - v0`.
     pub e2: Vec3,
+    /// `e1 × e2` (not normalised; zero for a degenerate triangle).
+    pub n: Vec3,
 }
 
-impl From<&Triangle> for TriangleEdges {
-    fn from(t: &Triangle) -> Self {
+impl TriangleEdges {
+    /// The triangle with vertices `v0`, `v1`, `v2`.
+    pub fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
+        let (e1, e2) = (v1 - v0, v2 - v0);
         Self {
-            v0: t.v[0],
-            e1: t.v[1] - t.v[0],
-            e2: t.v[2] - t.v[0],
+            v0,
+            e1,
+            e2,
+            n: e1.cross(e2),
         }
     }
 }
 
-/// Möller–Trumbore: the distance `t` along the ray `o + t·d` at which it
-/// crosses the triangle `(v0, e1, e2)`, and whether that counts as a hit:
-/// inside the triangle (edges included) and `t_min < t < t_max`.
+impl From<&Triangle> for TriangleEdges {
+    fn from(t: &Triangle) -> Self {
+        Self::new(t.v[0], t.v[1], t.v[2])
+    }
+}
+
+/// Möller–Trumbore with the triangle's `n = e1 × e2` precomputed (as in
+/// Embree): the distance `t` along the ray `o + t·d` at which it crosses
+/// the triangle, and whether it is inside the triangle (edges included)
+/// with `t > t_min`. The caller compares `t` with its own `t_max`.
 ///
-/// A ray parallel to the triangle's plane (determinant 0), or a degenerate
+/// With `c = v0 - o` and `w = c × d`, the paper's quantities are
+/// `det = -(d · n)`, `u = (e2 · w) / (d · n)`, `v = -(e1 · w) / (d · n)` and
+/// `t = (c · n) / (d · n)` — the scalar triple product identities turn the
+/// paper's two cross products per test into one.
+///
+/// A ray parallel to the triangle's plane (`d · n = 0`), or a degenerate
 /// triangle, makes `u`, `v` or `t` infinite or NaN, and every comparison
 /// with NaN is false: such rays miss.
 #[inline(always)]
-pub fn moller_trumbore<R: Real>(
-    o: V3<R>,
-    d: V3<R>,
-    v0: V3<R>,
-    e1: V3<R>,
-    e2: V3<R>,
-    t_min: R,
-    t_max: R,
-) -> (R::Mask, R) {
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    let inv_det = R::splat(1.0) / det;
-    let s = o - v0;
-    let u = s.dot(p) * inv_det;
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv_det;
-    let t = e2.dot(q) * inv_det;
+pub fn moller_trumbore<R: Real>(o: V3<R>, d: V3<R>, tri: &V3Tri<R>, t_min: R) -> (R::Mask, R) {
+    let c = tri.v0 - o;
+    let w = c.cross(d);
+    let inv_den = R::splat(1.0) / d.dot(tri.n);
+    let u = tri.e2.dot(w) * inv_den;
+    let v = -tri.e1.dot(w) * inv_den;
+    let t = c.dot(tri.n) * inv_den;
     let zero = R::splat(0.0);
-    let hit = zero.le(u) & zero.le(v) & (u + v).le(R::splat(1.0)) & t_min.lt(t) & t.lt(t_max);
-    (hit, t)
+    let inside = zero.le(u) & zero.le(v) & (u + v).le(R::splat(1.0)) & t_min.lt(t);
+    (inside, t)
+}
+
+/// One triangle (`R = f32`) or eight (`R = f32x8`) for [`moller_trumbore`].
+#[derive(Clone, Copy, Debug)]
+pub struct V3Tri<R> {
+    /// Vertex 0.
+    pub v0: V3<R>,
+    /// `v1 - v0`.
+    pub e1: V3<R>,
+    /// `v2 - v0`.
+    pub e2: V3<R>,
+    /// `e1 × e2`.
+    pub n: V3<R>,
+}
+
+impl From<&TriangleEdges> for V3Tri<f32> {
+    fn from(t: &TriangleEdges) -> Self {
+        Self {
+            v0: t.v0.into(),
+            e1: t.e1.into(),
+            e2: t.e2.into(),
+            n: t.n.into(),
+        }
+    }
 }
 
 /// The closest hit of one ray: triangle index and distance.
@@ -83,17 +115,9 @@ pub fn closest_hit_brute_force(
     let mut best: Option<Hit> = None;
     for (i, tri) in tris.iter().enumerate() {
         let limit = best.map_or(t_max, |h| h.t);
-        let (hit, t) = moller_trumbore(
-            o,
-            d,
-            V3::from(tri.v0),
-            V3::from(tri.e1),
-            V3::from(tri.e2),
-            t_min,
-            limit,
-        );
+        let (inside, t) = moller_trumbore(o, d, &V3Tri::from(tri), t_min);
         // Strictly closer only: on equal t the earlier (lower) index stays.
-        if hit {
+        if inside && t < limit {
             best = Some(Hit {
                 triangle: i as u32,
                 t,
@@ -106,7 +130,7 @@ pub fn closest_hit_brute_force(
 /// The hit point `o + t·d`, computed the same way by every engine.
 #[inline(always)]
 pub fn hit_point<R: Real>(o: V3<R>, d: V3<R>, t: R) -> V3<R> {
-    o + d.scale(t)
+    d.mul_add(t, o)
 }
 
 #[cfg(test)]
@@ -168,11 +192,7 @@ mod tests {
     #[test]
     fn both_windings_hit_from_both_sides() {
         let a = tri();
-        let b = TriangleEdges {
-            v0: a.v0,
-            e1: a.e2,
-            e2: a.e1,
-        };
+        let b = TriangleEdges::new(a.v0, a.v0 + a.e2, a.v0 + a.e1);
         for t in [a, b] {
             assert_eq!(cast(&t, Vec3::new(0.25, 0.25, 0.0), Vec3::Z), Some(1.0));
             assert_eq!(cast(&t, Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), Some(1.0));
@@ -181,11 +201,7 @@ mod tests {
 
     #[test]
     fn degenerate_triangle_never_hits() {
-        let t = TriangleEdges {
-            v0: Vec3::ZERO,
-            e1: Vec3::X,
-            e2: Vec3::X * 2.0,
-        };
+        let t = TriangleEdges::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0);
         assert_eq!(cast(&t, Vec3::new(0.5, 0.0, -1.0), Vec3::Z), None);
     }
 
@@ -193,11 +209,11 @@ mod tests {
     fn shared_edge_tie_goes_to_lower_index() {
         let a = tri();
         // The mirror image across the hypotenuse shares the edge (1,0)-(0,1).
-        let b = TriangleEdges {
-            v0: Vec3::new(1.0, 1.0, 1.0),
-            e1: Vec3::new(-1.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, -1.0, 0.0),
-        };
+        let b = TriangleEdges::new(
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        );
         let o = Vec3::new(0.5, 0.5, 0.0);
         let h = closest_hit_brute_force(&[a, b], o, Vec3::Z, 1e-4, f32::INFINITY).unwrap();
         assert_eq!(h.triangle, 0);
@@ -218,12 +234,8 @@ mod tests {
 /// triangle (which no ray hits) with index `u32::MAX`.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle8 {
-    /// Vertex 0 of each lane's triangle.
-    pub v0: Vec3x8,
-    /// Edge `v1 - v0` of each lane.
-    pub e1: Vec3x8,
-    /// Edge `v2 - v0` of each lane.
-    pub e2: Vec3x8,
+    /// The eight triangles, one per lane.
+    pub tri: V3Tri<f32x8>,
     /// Each lane's triangle index (`u32::MAX` for padding), as `i32` bits.
     pub index: i32x8,
 }
@@ -233,7 +245,7 @@ pub struct Triangle8 {
 pub struct LaneHits {
     /// Best distance per lane (the ray's `t_max` where nothing was hit).
     pub t: f32x8,
-    /// Triangle index per lane (`-1`, i.e. `u32::MAX`, where nothing was hit).
+    /// Triangle index per lane (`i32::MAX` where nothing was hit).
     pub index: i32x8,
 }
 
@@ -243,28 +255,30 @@ impl LaneHits {
     pub fn new(t_max: f32) -> Self {
         Self {
             t: f32x8::splat(t_max),
-            index: i32x8::splat(-1),
+            index: i32x8::splat(i32::MAX),
         }
     }
 
     /// The smallest `(t, index)` over the lanes, if any lane hit.
+    ///
+    /// Branch-free: the smallest `t`, then the smallest index among the
+    /// lanes holding it. Lanes that hit nothing hold `t_max` (which no hit
+    /// reaches) and index `i32::MAX`.
     #[inline(always)]
     pub fn closest(&self) -> Option<Hit> {
-        let (ts, ids) = (self.t.to_array(), self.index.to_array());
-        let mut best: Option<Hit> = None;
-        for l in 0..8 {
-            if ids[l] == -1 {
-                continue;
-            }
-            let h = Hit {
-                triangle: ids[l] as u32,
-                t: ts[l],
-            };
-            if best.is_none_or(|b| (h.t, h.triangle) < (b.t, b.triangle)) {
-                best = Some(h);
-            }
-        }
-        best
+        // A tree of minima: 8 lanes -> 4 -> 2 -> 1 (no lane is NaN).
+        let [lo, hi]: [f32x4; 2] = bytemuck::cast(self.t);
+        let [a, b, c, d] = lo.fast_min(hi).to_array();
+        let min = |x: f32, y: f32| if x < y { x } else { y };
+        let t = min(min(a, b), min(c, d));
+        let at_min: i32x8 = bytemuck::cast(self.t.simd_eq(f32x8::splat(t)));
+        let index = at_min
+            .select(self.index, i32x8::splat(i32::MAX))
+            .reduce_min();
+        (index != i32::MAX).then_some(Hit {
+            triangle: index as u32,
+            t,
+        })
     }
 }
 
@@ -281,9 +295,12 @@ impl Triangle8 {
             V3::new(lane(&|t| g(t).x), lane(&|t| g(t).y), lane(&|t| g(t).z))
         };
         Self {
-            v0: v3(&|t| t.v0),
-            e1: v3(&|t| t.e1),
-            e2: v3(&|t| t.e2),
+            tri: V3Tri {
+                v0: v3(&|t| t.v0),
+                e1: v3(&|t| t.e1),
+                e2: v3(&|t| t.e2),
+                n: v3(&|t| t.n),
+            },
             index: i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
                 tris.get(l).map_or(-1, |(i, _)| *i as i32)
             })),
@@ -304,18 +321,9 @@ impl Triangle8 {
     /// keeping in `best` each lane's smallest `(t, index)`.
     #[inline(always)]
     pub fn intersect(&self, o: &Vec3x8, d: &Vec3x8, t_min: f32x8, best: &mut LaneHits) {
-        let (hit, t) = moller_trumbore(
-            *o,
-            *d,
-            self.v0,
-            self.e1,
-            self.e2,
-            t_min,
-            f32x8::splat(f32::INFINITY),
-        );
-        let idx_lt: f32x8 =
-            bytemuck::cast(self.index.simd_lt(best.index) | best.index.simd_eq(i32x8::splat(-1)));
-        let closer = hit & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt));
+        let (inside, t) = moller_trumbore(*o, *d, &self.tri, t_min);
+        let idx_lt: f32x8 = bytemuck::cast(self.index.simd_lt(best.index));
+        let closer = inside & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt));
         best.t = closer.select(t, best.t);
         best.index = bytemuck::cast::<f32x8, i32x8>(closer).select(self.index, best.index);
     }

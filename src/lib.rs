@@ -6,10 +6,14 @@
 //! - [`camera`]: camera rays, jittered over each pixel;
 //! - [`sampling`]: per-sample random streams and hemisphere sampling;
 //! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
-//! - [`reference`]: the scalar recursive reference tracer (the oracle);
+//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
+//! - [`wavefront`]: the SIMD wavefront engine (generate → intersect →
+//!   shade → bounce), the default;
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
+//! - [`session`]: the render loop, in sample passes: progress, time
+//!   limits, checkpoints and resume, for a whole render or one shard;
 //! - [`shard`], [`merge`]: render farms: sample-range shards, exact merges;
 //! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
 //!
@@ -30,7 +34,9 @@ pub mod reference;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod session;
 pub mod shard;
 pub mod stats;
+pub mod wavefront;
 
 pub use error::{Error, Result};

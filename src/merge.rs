@@ -23,7 +23,8 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Args)]
 pub struct MergeArgs {
     /// Partial files (.wtacc) of one render, in any order, written by
-    /// `wavetrace render --shard ... --partial FILE`.
+    /// `wavetrace render --shard ... --partial FILE` (checkpoints are
+    /// partial files too).
     #[arg(required = true, value_name = "PART")]
     pub parts: Vec<PathBuf>,
     /// The merged output: an image (.png, .exr, .pfm) or a merged partial

@@ -42,7 +42,8 @@ fn temp_path(path: &Path) -> PathBuf {
 }
 
 /// Write a file atomically: everything goes to a temporary file beside it,
-/// which is flushed to disk and then renamed over `path`. On any error the
+/// which is flushed to disk and then renamed over `path` (and the rename is
+/// flushed too, where the system allows). On any error the
 /// temporary file is removed and `path` is left as it was.
 pub fn write_atomic(
     path: &Path,
@@ -54,7 +55,9 @@ pub fn write_atomic(
         write(&mut w)?;
         let f = w.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, path)?;
+        sync_parent(path);
+        Ok(())
     })();
     result.map_err(|source| {
         let _ = std::fs::remove_file(&tmp);
@@ -63,6 +66,24 @@ pub fn write_atomic(
             source,
         }
     })
+}
+
+/// Flush `path`'s directory entry to disk, so a rename survives a power cut
+/// or reboot (on Unix; best effort: some file systems refuse to sync a
+/// directory, and the rename has happened either way).
+fn sync_parent(path: &Path) {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
 }
 
 /// Check, before any work starts, that `path` can be written: its directory

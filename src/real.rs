@@ -4,8 +4,9 @@
 //! (8 lanes). Every kernel that both engines need — ray/triangle
 //! intersection, hemisphere sampling, the hit point — is written once, generic
 //! over [`Real`], and instantiated for both. Because each lane of an `f32x8`
-//! operation is the same IEEE-754 operation as its `f32` twin (no fused
-//! multiply-add is used anywhere), the two instantiations agree bit for bit.
+//! operation is the same IEEE-754 operation as its `f32` twin — including
+//! fused multiply-add, which is correctly rounded (one rounding) on every
+//! instruction set — the two instantiations agree bit for bit.
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
 use wide::f32x8;
@@ -23,6 +24,8 @@ pub trait Real:
     type Mask: Copy + BitAnd<Output = Self::Mask> + BitOr<Output = Self::Mask>;
     /// The same value in every lane.
     fn splat(x: f32) -> Self;
+    /// `self · a + b` with a single rounding (fused multiply-add).
+    fn mul_add(self, a: Self, b: Self) -> Self;
     /// Correctly rounded square root.
     fn sqrt(self) -> Self;
     /// Absolute value.
@@ -46,6 +49,12 @@ impl Real for f32 {
     #[inline(always)]
     fn splat(x: f32) -> Self {
         x
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        // One `vfmadd` instruction where FMA is enabled (x86-64-v3);
+        // a correctly rounded library call elsewhere.
+        f32::mul_add(self, a, b)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -86,6 +95,19 @@ impl Real for f32x8 {
     #[inline(always)]
     fn splat(x: f32) -> Self {
         f32x8::splat(x)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        if cfg!(target_feature = "fma") {
+            f32x8::mul_add(self, a, b)
+        } else {
+            // `wide` would round twice here; keep the single rounding (and so
+            // the agreement with `f32::mul_add`) lane by lane.
+            let (x, a, b) = (self.to_array(), a.to_array(), b.to_array());
+            f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
+                x[l].mul_add(a[l], b[l])
+            }))
+        }
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -146,18 +168,28 @@ impl<R: Real> V3<R> {
     pub fn splat(v: glam::Vec3) -> Self {
         Self::new(R::splat(v.x), R::splat(v.y), R::splat(v.z))
     }
-    /// Dot product, summed x + y + z in that order.
+    /// Dot product: `x·x' + (y·y' + z·z')` with fused multiply-adds.
     #[inline(always)]
     pub fn dot(self, o: Self) -> R {
-        self.x * o.x + self.y * o.y + self.z * o.z
+        self.x.mul_add(o.x, self.y.mul_add(o.y, self.z * o.z))
     }
-    /// Cross product.
+    /// Cross product, each component `a·b - c·d` as one fused
+    /// multiply-add.
     #[inline(always)]
     pub fn cross(self, o: Self) -> Self {
         Self::new(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
+            self.y.mul_add(o.z, -(self.z * o.y)),
+            self.z.mul_add(o.x, -(self.x * o.z)),
+            self.x.mul_add(o.y, -(self.y * o.x)),
+        )
+    }
+    /// `self · s + b`, component-wise, with fused multiply-adds.
+    #[inline(always)]
+    pub fn mul_add(self, s: R, b: Self) -> Self {
+        Self::new(
+            self.x.mul_add(s, b.x),
+            self.y.mul_add(s, b.y),
+            self.z.mul_add(s, b.z),
         )
     }
     /// Each component times `s`.
@@ -216,20 +248,32 @@ impl From<V3<f32>> for glam::Vec3 {
 #[inline(always)]
 pub fn sin_cos_2pi<R: Real>(x: R) -> (R, R) {
     let q = (x * R::splat(4.0)).round_ties_even();
-    let r = x - q * R::splat(0.25);
+    let r = q.mul_add(R::splat(-0.25), x);
     let a = r * R::splat(std::f32::consts::TAU);
     let a2 = a * a;
     // Taylor series to degree 9 / 8: the truncation error at |a| = π/4 is
     // below 2e-9 for sin and 2e-8 for cos, under f32's half-ulp.
-    let s = a
-        * (R::splat(1.0)
-            + a2 * (R::splat(-1.0 / 6.0)
-                + a2 * (R::splat(1.0 / 120.0)
-                    + a2 * (R::splat(-1.0 / 5040.0) + a2 * R::splat(1.0 / 362_880.0)))));
-    let c = R::splat(1.0)
-        + a2 * (R::splat(-0.5)
-            + a2 * (R::splat(1.0 / 24.0)
-                + a2 * (R::splat(-1.0 / 720.0) + a2 * R::splat(1.0 / 40_320.0))));
+    let one = R::splat(1.0);
+    let s = a * a2.mul_add(
+        a2.mul_add(
+            a2.mul_add(
+                a2.mul_add(R::splat(1.0 / 362_880.0), R::splat(-1.0 / 5040.0)),
+                R::splat(1.0 / 120.0),
+            ),
+            R::splat(-1.0 / 6.0),
+        ),
+        one,
+    );
+    let c = a2.mul_add(
+        a2.mul_add(
+            a2.mul_add(
+                a2.mul_add(R::splat(1.0 / 40_320.0), R::splat(-1.0 / 720.0)),
+                R::splat(1.0 / 24.0),
+            ),
+            R::splat(-0.5),
+        ),
+        one,
+    );
     // Quadrant q (mod 4) rotates (s, c) by q·π/2; q = 4 is quadrant 0.
     let q1 = q.eq(R::splat(1.0));
     let q2 = q.eq(R::splat(2.0));

@@ -76,7 +76,9 @@ impl ReferenceTracer {
         let new_dir = Vec3::from(uniform_hemisphere(V3::from(normal), x1, x2));
 
         let probability = 1.0 / (2.0 * PI);
-        let cos_theta = V3::from(new_dir).dot(V3::from(normal));
+        // cos θ = X1 by construction; dot(new_dir, normal) equals it up to
+        // rounding, which can make it -1e-7 and a sample negative.
+        let cos_theta = x1;
         let brdf = material.reflectance / PI;
         let incoming = self.trace_path(new_origin, new_dir, depth + 1, rng, rays);
         emittance + brdf * incoming * cos_theta / probability

@@ -4,6 +4,7 @@ use crate::error::{Error, Result};
 use crate::film::{Film, accumulate};
 use crate::reference::ReferenceTracer;
 use crate::scene::Scene;
+use crate::wavefront::{Scratch, WavefrontEngine};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::time::{Duration, Instant};
@@ -15,6 +16,8 @@ use std::time::{Duration, Instant};
 pub enum Engine {
     /// The scalar recursive reference tracer (the oracle).
     Reference,
+    /// The SIMD wavefront engine (the default).
+    Wavefront,
 }
 
 impl Engine {
@@ -22,6 +25,7 @@ impl Engine {
     pub fn name(self) -> &'static str {
         match self {
             Engine::Reference => "reference",
+            Engine::Wavefront => "wavefront",
         }
     }
 
@@ -29,8 +33,9 @@ impl Engine {
     pub fn from_name(name: &str) -> Result<Self> {
         match name {
             "reference" => Ok(Engine::Reference),
+            "wavefront" => Ok(Engine::Wavefront),
             _ => Err(Error::Settings(format!(
-                "unknown engine {name:?} (known: reference)"
+                "unknown engine {name:?} (known: reference, wavefront)"
             ))),
         }
     }
@@ -53,7 +58,12 @@ pub struct RenderSettings {
     pub threads: usize,
     /// The path tracer.
     pub engine: Engine,
+    /// Paths per wavefront batch (does not change the image).
+    pub batch_size: usize,
 }
+
+/// Default paths per wavefront batch: the queues stay in the L2 cache.
+pub const DEFAULT_BATCH_SIZE: usize = 4096;
 
 impl RenderSettings {
     /// The scene's defaults: its resolution and depth, 1 sample per pixel,
@@ -66,7 +76,8 @@ impl RenderSettings {
             max_depth: scene.max_depth,
             seed: 0,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            engine: Engine::Reference,
+            engine: Engine::Wavefront,
+            batch_size: DEFAULT_BATCH_SIZE,
         }
     }
 
@@ -88,6 +99,9 @@ impl RenderSettings {
         if self.threads == 0 {
             return bad("threads must be at least 1");
         }
+        if self.batch_size == 0 {
+            return bad("the batch size must be at least 1");
+        }
         Ok(())
     }
 
@@ -106,6 +120,45 @@ impl RenderSettings {
     }
 }
 
+/// Seconds spent in each wavefront stage, summed over threads.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct StageSeconds {
+    /// Camera ray generation.
+    pub generate: f64,
+    /// Closest-hit queries.
+    pub intersect: f64,
+    /// Emission, retirement and binning.
+    pub shade: f64,
+    /// Direction sampling, throughput and compaction.
+    pub bounce: f64,
+}
+
+impl StageSeconds {
+    /// The stages by name, for the stats file; empty when nothing was
+    /// timed (the reference engine has no stages).
+    pub fn by_name(&self) -> std::collections::BTreeMap<&'static str, f64> {
+        let all = [
+            ("generate", self.generate),
+            ("intersect", self.intersect),
+            ("shade", self.shade),
+            ("bounce", self.bounce),
+        ];
+        if all.iter().all(|(_, s)| *s == 0.0) {
+            return Default::default();
+        }
+        all.into_iter().collect()
+    }
+}
+
+impl std::ops::AddAssign for StageSeconds {
+    fn add_assign(&mut self, o: Self) {
+        self.generate += o.generate;
+        self.intersect += o.intersect;
+        self.shade += o.shade;
+        self.bounce += o.bounce;
+    }
+}
+
 /// Work counted while rendering.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Counters {
@@ -115,6 +168,8 @@ pub struct Counters {
     pub rays: u64,
     /// Samples refused as NaN, infinite or negative.
     pub invalid_samples: u64,
+    /// Time per wavefront stage (zero for the reference engine).
+    pub stages: StageSeconds,
 }
 
 impl std::ops::AddAssign for Counters {
@@ -122,7 +177,13 @@ impl std::ops::AddAssign for Counters {
         self.paths += o.paths;
         self.rays += o.rays;
         self.invalid_samples += o.invalid_samples;
+        self.stages += o.stages;
     }
+}
+
+fn sum_counters(mut a: Counters, b: Counters) -> Counters {
+    a += b;
+    a
 }
 
 /// A scene prepared for one engine and one set of settings, with its pool
@@ -132,10 +193,13 @@ pub struct Renderer {
     scene: Scene,
     pool: rayon::ThreadPool,
     engine: EngineState,
+    /// Wavefront queues, one per worker thread (uncontended locks).
+    scratch: Vec<std::sync::Mutex<Scratch>>,
 }
 
 enum EngineState {
     Reference(ReferenceTracer),
+    Wavefront(WavefrontEngine),
 }
 
 impl Renderer {
@@ -152,8 +216,18 @@ impl Renderer {
             Engine::Reference => {
                 EngineState::Reference(ReferenceTracer::new(scene, settings.max_depth))
             }
+            Engine::Wavefront => {
+                EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth))
+            }
+        };
+        let scratch = match settings.engine {
+            Engine::Wavefront => (0..settings.threads)
+                .map(|_| std::sync::Mutex::new(Scratch::new(settings.batch_size)))
+                .collect(),
+            Engine::Reference => Vec::new(),
         };
         Ok(Self {
+            scratch,
             settings: settings.clone(),
             scene: scene.clone(),
             pool,
@@ -203,10 +277,31 @@ impl Renderer {
                     }
                     c
                 })
-                .reduce(Counters::default, |mut a, b| {
-                    a += b;
-                    a
-                }),
+                .reduce(Counters::default, sum_counters),
+            EngineState::Wavefront(engine) => {
+                let tile = tile_pixels(s, range.len());
+                film.sums
+                    .par_chunks_mut(tile)
+                    .enumerate()
+                    .map(|(i, sums)| {
+                        // Each worker thread reuses its own queues.
+                        let worker = rayon::current_thread_index().unwrap_or(0);
+                        let mut scratch = self.scratch[worker].lock().expect("scratch lock");
+                        let start = (i * tile) as u32;
+                        let pixels = start..start + sums.len() as u32;
+                        engine.render_tile(
+                            &mut scratch,
+                            &camera,
+                            s.width,
+                            s.seed,
+                            pixels,
+                            range.clone(),
+                            s.batch_size,
+                            sums,
+                        )
+                    })
+                    .reduce(Counters::default, sum_counters)
+            }
         });
         film.add_range(range);
         film.invalid_samples += counters.invalid_samples;
@@ -220,4 +315,13 @@ impl Renderer {
         let counters = self.render_samples(0..self.settings.spp, &mut film);
         (film, counters, start.elapsed())
     }
+}
+
+/// Pixels per tile (a unit of work for a thread): about one batch of
+/// paths, but small enough to give every thread several tiles.
+fn tile_pixels(s: &RenderSettings, samples: usize) -> usize {
+    let pixels = s.width as usize * s.height as usize;
+    let per_batch = (s.batch_size / samples.max(1)).max(1);
+    let for_balance = pixels.div_ceil(8 * s.threads).max(1);
+    per_batch.min(for_balance)
 }

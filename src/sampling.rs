@@ -46,11 +46,11 @@ pub fn splitmix64(mut z: u64) -> u64 {
 /// In the local frame with `n` as the y axis: `cos θ = X1`,
 /// `sin θ = sqrt(1 - X1²)`, `φ = 2π·X2`,
 /// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`. The frame around `n` is
-/// Scratchapixel's (the report's reference [3]): a tangent `nt` orthogonal
+/// Scratchapixel's (the report's reference \[3\]): a tangent `nt` orthogonal
 /// to `n` built from its two largest components, and `nb = n × nt`.
 #[inline(always)]
 pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
-    let sin_theta = (R::splat(1.0) - x1 * x1).sqrt();
+    let sin_theta = (-x1).mul_add(x1, R::splat(1.0)).sqrt();
     let (sin_phi, cos_phi) = sin_cos_2pi(x2);
     let (lx, ly, lz) = (sin_theta * cos_phi, x1, sin_theta * sin_phi);
 
@@ -64,7 +64,7 @@ pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
         V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
     );
     let nb = n.cross(nt);
-    nb.scale(lx) + n.scale(ly) + nt.scale(lz)
+    nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
 }
 
 #[cfg(test)]

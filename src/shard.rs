@@ -328,7 +328,7 @@ pub fn check_output_format(path: &Path) -> Result<()> {
     }
     ImageFormat::from_path(path).map(|_| ()).map_err(|_| {
         Error::Settings(format!(
-            "{}: unknown output format; use .png, .exr, .pfm or .{PARTIAL_EXTENSION} (a partial file)",
+            "{}: unknown image format; use a .png, .exr or .pfm extension, or .{PARTIAL_EXTENSION} for a partial file",
             path.display()
         ))
     })

@@ -524,7 +524,8 @@ fn merge_refuses_truncated_and_corrupt_files_naming_them() {
 #[test]
 fn merge_takes_spp_for_parts_that_do_not_record_it() {
     let dir = scratch("nospp");
-    // Partial films saved with Film::save (as checkpoints are): no spp.
+    // Partial films saved with Film::save (no AccMeta, as checkpoints of
+    // builds before shards were): no spp.
     let scene = Scene::cornell();
     let mut settings = RenderSettings::for_scene(&scene);
     (

@@ -130,7 +130,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             file: file.to_string(),
             line,
             column,
-            field: field_of(e.message()).or_else(|| e.span().and_then(|s| key_at(text, s.start))),
+            field: field_at(text, e.span().map(|s| s.start), field_of(e.message())),
             message: e.message().trim().to_string(),
         }
     })?;
@@ -356,23 +356,60 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// The dotted field of a TOML error at byte `offset` that names `named`
+/// (`unknown field `x``, `missing field `x``): the key written there, or
+/// `named` inside the table whose header is there; else what is known.
+fn field_at(text: &str, offset: Option<usize>, named: Option<String>) -> Option<String> {
+    let at_key = offset.and_then(|o| key_at(text, o));
+    let header = offset.and_then(|o| {
+        let line_start = text[..o.min(text.len())].rfind('\n').map_or(0, |i| i + 1);
+        table_header(text[line_start..].lines().next().unwrap_or(""))
+    });
+    let within = |outer: &str, n: &str| outer == n || outer.ends_with(&format!(".{n}"));
+    match (named, at_key, header) {
+        (Some(n), Some(k), _) if within(&k, &n) => Some(k),
+        (Some(n), _, Some(h)) if within(h, &n) => Some(h.to_string()),
+        (Some(n), _, Some(h)) => Some(format!("{h}.{n}")),
+        (Some(n), _, _) => Some(n),
+        (None, k, _) => k,
+    }
+}
+
 /// The dotted key whose value holds byte `offset`: the nearest table header
 /// above it (`[camera]`, `[[triangle]]`) and the `key =` on its line.
 fn key_at(text: &str, offset: usize) -> Option<String> {
     let before = &text[..offset.min(text.len())];
     let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let line = &text[line_start..];
+    // Only the offset's own line: `key = value`.
+    let line = text[line_start..].lines().next().unwrap_or("");
     let key = line.split_once('=').map(|(k, _)| k.trim())?;
-    let table = before[..line_start]
-        .lines()
-        .rev()
-        .map(str::trim)
-        .find(|l| l.starts_with('['))
-        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim());
+    if key.is_empty() || key.starts_with(['[', '#']) {
+        return None;
+    }
+    let table = before[..line_start].lines().rev().find_map(table_header);
     Some(match table {
         Some(t) => format!("{t}.{key}"),
         None => key.to_string(),
     })
+}
+
+/// The table a header line names (`[camera]`, `[[triangle]]`, with an
+/// optional comment), or `None` for any other line — such as the rows of a
+/// multi-line array.
+fn table_header(line: &str) -> Option<&str> {
+    let line = line.split('#').next()?.trim();
+    let name = line.strip_prefix('[')?.strip_suffix(']')?;
+    let name = name
+        .strip_prefix('[')
+        .and_then(|n| n.strip_suffix(']'))
+        .unwrap_or(name)
+        .trim();
+    let first = name.chars().next()?;
+    let is_key = (first.is_alphabetic() || first == '_' || first == '"')
+        && name
+            .chars()
+            .all(|c| c.is_alphanumeric() || "_-. \"".contains(c));
+    is_key.then_some(name)
 }
 
 /// The field a serde message is about (`unknown field `x``, `missing field `x``).

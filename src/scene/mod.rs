@@ -1,6 +1,6 @@
 //! The scene: camera, materials and triangles.
 //!
-//! Scenes are read from TOML files ([`file`]); the DH2323 Cornell box is
+//! Scenes are read from TOML files ([`file`](mod@file)); the DH2323 Cornell box is
 //! built in ([`Scene::cornell`]) and is the default scene.
 
 pub mod file;

@@ -1,0 +1,203 @@
+//! Reproducibility: an image depends on the scene, the settings and the seed,
+//! and on nothing else — not the thread count, not how the samples are split
+//! into passes, not a round trip through an accumulation file.
+
+use std::path::PathBuf;
+use wavetrace::film::Film;
+use wavetrace::output::write_image;
+use wavetrace::render::{RenderSettings, Renderer};
+use wavetrace::scene::Scene;
+
+fn settings(seed: u64, threads: usize) -> RenderSettings {
+    let scene = Scene::cornell();
+    let mut s = RenderSettings::for_scene(&scene);
+    (s.width, s.height, s.spp, s.max_depth) = (32, 24, 8, 3);
+    s.seed = seed;
+    s.threads = threads;
+    s
+}
+
+fn render(seed: u64, threads: usize) -> Film {
+    let (film, counters, _) = Renderer::new(&Scene::cornell(), &settings(seed, threads))
+        .unwrap()
+        .render();
+    assert_eq!(counters.paths, 32 * 24 * 8);
+    film
+}
+
+/// A fresh directory under the system's temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!(
+            "wavetrace-test-determinism-{name}-{}",
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn assert_same_film(a: &Film, b: &Film, what: &str) {
+    assert_eq!((a.width, a.height), (b.width, b.height), "{what}");
+    assert_eq!(a.ranges, b.ranges, "{what}");
+    assert_eq!(a.invalid_samples, b.invalid_samples, "{what}");
+    let differing = a.sums.iter().zip(&b.sums).filter(|(x, y)| x != y).count();
+    assert_eq!(differing, 0, "{what}: {differing} pixels differ");
+}
+
+#[test]
+fn the_same_seed_gives_the_same_film_and_the_same_image_bytes() {
+    let dir = TempDir::new("bytes");
+    let a = render(11, 2);
+    let b = render(11, 2);
+    assert_same_film(&a, &b, "two renders with seed 11");
+    // Not vacuous: the image has light in it and varies across pixels.
+    assert!(a.sums.iter().any(|s| s[0] > 0));
+    assert!(a.sums.iter().any(|s| s != &a.sums[0]));
+    for ext in ["png", "pfm", "exr"] {
+        let (pa, pb) = (
+            dir.0.join(format!("a.{ext}")),
+            dir.0.join(format!("b.{ext}")),
+        );
+        write_image(&pa, a.width, a.height, &a.to_rgb()).unwrap();
+        write_image(&pb, b.width, b.height, &b.to_rgb()).unwrap();
+        let (ba, bb) = (std::fs::read(&pa).unwrap(), std::fs::read(&pb).unwrap());
+        assert!(!ba.is_empty());
+        assert!(ba == bb, "the .{ext} files differ");
+    }
+    // Written atomically: nothing but the six images is left in the folder.
+    let mut names: Vec<String> = std::fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["a.exr", "a.pfm", "a.png", "b.exr", "b.pfm", "b.png"]
+    );
+}
+
+#[test]
+fn the_thread_count_does_not_change_the_film() {
+    let one = render(5, 1);
+    for threads in [2, 3] {
+        assert_same_film(
+            &one,
+            &render(5, threads),
+            &format!("1 vs {threads} threads"),
+        );
+    }
+    // The settings hash that guards accumulation files ignores threads too.
+    let scene = Scene::cornell();
+    assert_eq!(
+        settings(5, 1).image_hash(&scene),
+        settings(5, 3).image_hash(&scene)
+    );
+}
+
+#[test]
+fn a_different_seed_gives_a_different_film() {
+    let a = render(1, 2);
+    let b = render(2, 2);
+    // Pixels that no path of either render lit are 0 in both; every lit
+    // pixel's samples change with the seed, and equal sums of different
+    // random samples would be a coincidence (pixels that see only the light
+    // at every sample, exactly 10 each time, are the rare exception).
+    let lit = a
+        .sums
+        .iter()
+        .zip(&b.sums)
+        .filter(|(x, y)| **x != [0; 3] || **y != [0; 3])
+        .count();
+    let differing = a.sums.iter().zip(&b.sums).filter(|(x, y)| x != y).count();
+    assert!(lit > a.sums.len() / 4, "only {lit} pixels lit");
+    assert!(
+        differing * 10 >= lit * 9,
+        "only {differing} of {lit} lit pixels differ between seeds 1 and 2"
+    );
+    let scene = Scene::cornell();
+    assert_ne!(
+        settings(1, 2).image_hash(&scene),
+        settings(2, 2).image_hash(&scene)
+    );
+}
+
+#[test]
+fn splitting_the_samples_into_passes_changes_nothing() {
+    let scene = Scene::cornell();
+    let renderer = Renderer::new(&scene, &settings(9, 2)).unwrap();
+    let mut whole = renderer.new_film();
+    let c_whole = renderer.render_samples(0..8, &mut whole);
+
+    let mut split = renderer.new_film();
+    let c1 = renderer.render_samples(0..3, &mut split);
+    let c2 = renderer.render_samples(3..8, &mut split);
+    assert_same_film(&whole, &split, "0..8 vs 0..3 + 3..8");
+    assert_eq!(c_whole.paths, c1.paths + c2.paths);
+    assert_eq!(c_whole.rays, c1.rays + c2.rays);
+
+    // In reverse order, and one sample at a time.
+    let mut reversed = renderer.new_film();
+    renderer.render_samples(5..8, &mut reversed);
+    renderer.render_samples(0..5, &mut reversed);
+    assert_same_film(&whole, &reversed, "5..8 then 0..5");
+    let mut singles = renderer.new_film();
+    for s in (0..8).rev() {
+        renderer.render_samples(s..s + 1, &mut singles);
+    }
+    assert_same_film(&whole, &singles, "8 single samples");
+
+    // The whole render is the same as render() and as another thread count.
+    let (film, _, _) = renderer.render();
+    assert_same_film(&whole, &film, "render_samples(0..8) vs render()");
+}
+
+#[test]
+fn an_accumulation_file_round_trip_continues_the_render_exactly() {
+    let dir = TempDir::new("acc");
+    let scene = Scene::cornell();
+    let s = settings(4, 2);
+    let hash = s.image_hash(&scene);
+    let renderer = Renderer::new(&scene, &s).unwrap();
+    let mut whole = renderer.new_film();
+    renderer.render_samples(0..8, &mut whole);
+
+    let path = dir.0.join("part.acc");
+    let mut first = renderer.new_film();
+    renderer.render_samples(0..3, &mut first);
+    first.save(&path, hash).unwrap();
+    let (mut loaded, h) = Film::load(&path, Some(hash)).unwrap();
+    assert_eq!(h, hash);
+    assert_same_film(&first, &loaded, "saved vs loaded");
+    renderer.render_samples(3..8, &mut loaded);
+    assert_same_film(&whole, &loaded, "0..3 saved, loaded, + 3..8");
+
+    // A file of another render (other seed) is refused when a hash is given.
+    let other = settings(5, 2).image_hash(&scene);
+    assert!(Film::load(&path, Some(other)).is_err());
+    // A corrupt or truncated file is refused.
+    let bytes = std::fs::read(&path).unwrap();
+    let mut corrupt = bytes.clone();
+    let mid = corrupt.len() / 2;
+    corrupt[mid] ^= 1;
+    std::fs::write(&path, &corrupt).unwrap();
+    let e = Film::load(&path, Some(hash)).unwrap_err().to_string();
+    assert!(e.contains("part.acc"), "{e}");
+    std::fs::write(&path, &bytes[..bytes.len() - 5]).unwrap();
+    assert!(Film::load(&path, Some(hash)).is_err());
+    // And no temporary files are left beside it.
+    let names: Vec<_> = std::fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["part.acc"]);
+}
