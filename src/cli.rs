@@ -1,12 +1,13 @@
 //! The command line: `wavetrace render ...` (the default command).
 
 use crate::error::{Error, Result};
-use crate::film::Film;
-use crate::output::{ImageFormat, check_writable, write_atomic, write_image};
+use crate::film::{AccMeta, Film};
+use crate::output::{check_writable, write_atomic};
 use crate::profile::Profile;
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::scene::Scene;
 use crate::session::{Interrupt, Session, SessionOptions, Stop};
+use crate::shard::{SampleWork, write_output};
 use crate::stats::RenderStats;
 use crate::stats::Stages;
 use clap::{Args, Parser, Subcommand};
@@ -22,8 +23,8 @@ use std::time::{Duration, Instant};
     version,
     about,
     args_conflicts_with_subcommands = true,
-    after_help = "Exit status: 0 when the image was written (all samples, or as many as \
-                  --time-limit allowed); 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
+    after_help = "Exit status: 0 when the outputs were written (all samples, or as many as \
+                  --time-limit allowed), or when `merge` wrote its output; 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
                   143 (SIGTERM) when a signal stopped the render after its current pass, \
                   the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
                   leaving the last checkpoint as it was."
@@ -39,9 +40,14 @@ pub struct Cli {
 
 /// wavetrace's commands.
 #[derive(Debug, Subcommand)]
+// Parsed once per process: the size of the render variant does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum Command {
-    /// Render a scene to an image.
+    /// Render a scene (or one shard's sample range of it) to an image or
+    /// a partial file.
     Render(RenderArgs),
+    /// Merge the partial files of shards into the image of the whole render.
+    Merge(crate::merge::MergeArgs),
 }
 
 /// Options of `wavetrace render`. Flags override the profile, which
@@ -69,14 +75,15 @@ pub struct RenderArgs {
     /// Random seed.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: SLURM_CPUS_PER_TASK if set, else all cores).
     #[arg(long)]
     pub threads: Option<usize>,
     /// Path tracer.
     #[arg(long, value_enum)]
     pub engine: Option<Engine>,
-    /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float).
-    /// Default: the scene file's name with .png (cornell.png).
+    /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float), or
+    /// .wtacc for a partial file. Default: the scene file's name with .png
+    /// (cornell.png), or none when --partial is given.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write the render's figures as JSON to this file.
@@ -91,24 +98,29 @@ pub struct RenderArgs {
     /// done; --spp stays the most that are rendered.
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub time_limit: Option<Duration>,
-    /// Save the accumulated samples to this file every --checkpoint-every
-    /// seconds, on SIGINT or SIGTERM (then exit with status 130 or 143),
-    /// and at the end. Refused if the file exists, unless it is the
-    /// --resume file.
+    /// Save the accumulated samples to this file (a .wtacc partial file of
+    /// the samples done so far) every --checkpoint-every seconds, on SIGINT
+    /// or SIGTERM (then exit with status 130 or 143), and at the end.
+    /// Refused if the file exists, unless it is the --resume file.
     #[arg(long, value_name = "FILE")]
     pub checkpoint: Option<PathBuf>,
     /// Seconds between checkpoints [default: 60].
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub checkpoint_every: Option<Duration>,
     /// Continue the render saved in this checkpoint file (made with the
-    /// same scene and settings; --spp and --threads may differ), and keep
+    /// same scene and settings, and the same --shard or --samples; --spp
+    /// may grow for a whole render, --threads may differ), and keep
     /// checkpointing to it unless --checkpoint names another file.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
     /// Write the image so far to --out every this many seconds, so a
-    /// viewer can watch it converge.
+    /// viewer can watch it converge (not to be confused with --partial,
+    /// the partial file of a shard).
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub write_partial: Option<Duration>,
+    /// Farm options: sample ranges, shards, partial files.
+    #[command(flatten)]
+    pub farm: crate::shard::ShardArgs,
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
@@ -123,24 +135,35 @@ fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| format!("{text:?}: {e}"))
 }
 
-/// Run the command line. Returns the process exit status: 0 when the image
-/// was written, 128 + the signal number (130 for SIGINT, 143 for SIGTERM)
-/// when a signal stopped the render (after saving the checkpoint). Errors
-/// are for the caller to print (exit status 1).
+/// Run the command line. Returns the process exit status: 0 when the
+/// outputs were written, 128 + the signal number (130 for SIGINT, 143 for
+/// SIGTERM) when a signal stopped the render (after saving the checkpoint).
+/// Errors are for the caller to print (exit status 1).
 pub fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         None => render(cli.render),
         Some(Command::Render(args)) => render(args),
+        Some(Command::Merge(args)) => crate::merge::run(args).map(|()| ExitCode::SUCCESS),
     }
 }
 
-/// The settings, scene and output a render command asks for, all checked.
+/// The settings, scene and outputs a render command asks for, all checked.
 struct Job {
     scene: Scene,
     settings: RenderSettings,
-    /// [`RenderSettings::image_hash`]: what checkpoints are checked against.
-    settings_hash: u128,
-    out: PathBuf,
+    /// The header of every accumulation file the render writes
+    /// (checkpoints, `--partial`, a `.wtacc` `--out`): the settings hash
+    /// ([`RenderSettings::image_hash`], what checkpoints and parts are
+    /// checked against), `spp` and the shard.
+    meta: AccMeta,
+    /// The image or `.wtacc` file to write at the end, if any.
+    out: Option<PathBuf>,
+    /// The partial file (`.wtacc`) to write at the end, if any.
+    partial: Option<PathBuf>,
+    /// The sample range to render (a shard's, or `0..spp`).
+    work: SampleWork,
+    /// `--check`: check everything, render nothing.
+    check: bool,
     stats: Option<PathBuf>,
     quiet: bool,
     /// The film to continue (`--resume`), already checked.
@@ -172,11 +195,23 @@ fn plan(args: RenderArgs) -> Result<Job> {
         .or(profile.max_depth)
         .unwrap_or(settings.max_depth);
     settings.seed = args.seed.or(profile.seed).unwrap_or(settings.seed);
-    settings.threads = args.threads.unwrap_or(settings.threads);
+    let env = |name: &str| std::env::var(name).ok();
+    settings.threads = match args.threads {
+        Some(threads) => threads,
+        None => crate::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+    };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     settings.validate()?;
+    let work = args.farm.resolve(settings.spp, &env)?;
+    let partial = args.farm.partial.clone();
+    if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
+        return Err(Error::Settings(format!(
+            "rendering samples {}..{} only: name the partial file to write with --partial FILE.wtacc",
+            work.range.start, work.range.end
+        )));
+    }
 
-    let out = args.out.unwrap_or_else(|| {
+    let default_out = (args.out.is_none() && partial.is_none()).then(|| {
         let stem = args
             .scene
             .as_ref()
@@ -184,13 +219,24 @@ fn plan(args: RenderArgs) -> Result<Job> {
             .map_or("cornell".into(), |s| s.to_string_lossy().into_owned());
         PathBuf::from(format!("{stem}.png"))
     });
-    ImageFormat::from_path(&out)?;
-    check_writable(&out)?;
+    let out = args.out.or(default_out);
+    if let Some(out) = &out {
+        crate::shard::check_output_format(out)?;
+        check_writable(out)?;
+    }
+    if let Some(partial) = &partial {
+        crate::shard::check_partial_path(partial)?;
+        check_writable(partial)?;
+    }
     if let Some(stats) = &args.stats {
         check_writable(stats)?;
     }
 
-    let settings_hash = settings.image_hash(&scene);
+    let meta = AccMeta {
+        settings_hash: settings.image_hash(&scene),
+        spp: Some(settings.spp),
+        shard: work.shard,
+    };
     let checkpoint = args.checkpoint.clone().or_else(|| args.resume.clone());
     if args.checkpoint_every.is_some() && checkpoint.is_none() {
         return Err(Error::Settings(
@@ -198,9 +244,16 @@ fn plan(args: RenderArgs) -> Result<Job> {
         ));
     }
     if let Some(path) = &checkpoint {
-        if same_file(path, &out) {
+        if out.as_deref().is_some_and(|out| same_file(path, out)) {
             return Err(Error::Settings(format!(
                 "{}: the checkpoint cannot be the output image",
+                path.display()
+            )));
+        }
+        if partial.as_deref().is_some_and(|p| same_file(path, p)) {
+            return Err(Error::Settings(format!(
+                "{}: the checkpoint cannot be the --partial file (a checkpoint is \
+                 work in progress, the partial file a finished shard)",
                 path.display()
             )));
         }
@@ -216,24 +269,38 @@ fn plan(args: RenderArgs) -> Result<Job> {
     }
     // The checkpoint to continue is read and checked in full before any
     // work: a missing, truncated, corrupt or foreign one is refused here and
-    // left as it is.
+    // left as it is. Its samples must lie within this render's sample range
+    // (0..spp, or the shard's): a shard's checkpoint resumes that shard.
     let resumed = match &args.resume {
         Some(path) => {
-            let (film, _) = Film::load(path, Some(settings_hash))?;
+            let (film, saved) = Film::load_with_meta(path, Some(meta.settings_hash))?;
+            crate::session::check_resumable(&film, &settings, &work.range).map_err(
+                |mut message| {
+                    if let Some((i, n)) = saved.shard {
+                        message += &format!(" (it was saved by shard {i}/{n})");
+                    }
+                    Error::Accumulation {
+                        path: path.clone(),
+                        message,
+                    }
+                },
+            )?;
             Some(film)
         }
         None => None,
     };
-    if let (Some(film), Some(path)) = (&resumed, &args.resume) {
-        crate::session::check_resumable(film, &settings).map_err(|message| {
-            Error::Accumulation {
-                path: path.clone(),
-                message,
-            }
-        })?;
-    }
 
+    let partial_image = match (args.write_partial, &out) {
+        (None, _) => None,
+        (Some(every), Some(out)) => Some((out.clone(), every)),
+        (Some(_), None) => {
+            return Err(Error::Settings(
+                "--write-partial rewrites the --out file: give --out as well".into(),
+            ));
+        }
+    };
     let mut session = SessionOptions {
+        samples: Some(work.range.clone()),
         time_limit: args.time_limit,
         checkpoint,
         checkpoint_every: args
@@ -241,15 +308,18 @@ fn plan(args: RenderArgs) -> Result<Job> {
             .unwrap_or(crate::session::DEFAULT_CHECKPOINT_EVERY),
         ..SessionOptions::default()
     };
-    if let Some(every) = args.write_partial {
-        session.partial_image = Some(out.clone());
+    if let Some((path, every)) = partial_image {
+        session.partial_image = Some(path);
         session.partial_every = every;
     }
     Ok(Job {
         scene,
         settings,
-        settings_hash,
+        meta,
         out,
+        partial,
+        work,
+        check: args.farm.check,
         stats: args.stats,
         quiet: args.quiet,
         resumed,
@@ -277,18 +347,18 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let quiet = job.quiet || !std::io::stderr().is_terminal();
     job.session.progress = !quiet;
     let s = &job.settings;
-    if !quiet {
-        eprintln!(
-            "wavetrace: {} at {}x{}, {} spp, max depth {}, seed {}, {} thread(s), {} engine",
-            job.scene.name,
-            s.width,
-            s.height,
-            s.spp,
-            s.max_depth,
-            s.seed,
-            s.threads,
-            s.engine.name()
+    if job.check {
+        // What would be rendered, on stdout: the scene, settings, shard,
+        // resume and outputs are all checked by now (and the engine below).
+        Renderer::new(&job.scene, s)?;
+        println!(
+            "check: ok: would render {}; nothing rendered",
+            describe(&job)
         );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if !quiet {
+        eprintln!("wavetrace: {}", describe(&job));
     }
     let setup_start = Instant::now();
     let renderer = Renderer::new(&job.scene, s)?;
@@ -306,7 +376,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     stages.setup = setup_start.elapsed().as_secs_f64();
 
     let film = job.resumed.take().unwrap_or_else(|| renderer.new_film());
-    let mut session = Session::new(&renderer, job.settings_hash, job.session.clone());
+    let mut session = Session::new(&renderer, job.meta, job.session.clone());
     let report = session.run(film, &interrupt)?;
     let film = &report.film;
     stages.render = report.render_seconds;
@@ -314,37 +384,64 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let mut checkpoint_seconds = report.checkpoint_seconds;
     let mut checkpoints_saved = report.checkpoints_saved;
     let mut output = None;
+    let mut partial_written = None;
 
-    // The checkpoint is saved first, and both it and the image are tried
-    // even if the other fails, so a full disk loses as little as possible.
+    // The checkpoint is saved first, and it and every output are tried even
+    // if another fails, so a full disk loses as little as possible.
     let t = Instant::now();
     let saved = session.save_checkpoint(film);
     checkpoint_seconds += t.elapsed().as_secs_f64();
-    let image = match report.stop {
-        // Stopped by a signal: no final image, only the partial one, brought
-        // up to the checkpoint.
-        Stop::Signal(_) => job.session.partial_image.clone().map(|p| (p, false)),
-        Stop::Complete | Stop::TimeLimit => Some((job.out.clone(), true)),
-    };
-    let written = image.map(|(path, is_final)| {
+    // (path, final output?, the --partial file?)
+    let mut files: Vec<(PathBuf, bool, bool)> = Vec::new();
+    match report.stop {
+        // Stopped by a signal: no final image or partial file (the
+        // checkpoint holds the work), only the --write-partial image,
+        // brought up to the checkpoint.
+        Stop::Signal(_) => {
+            if let Some(p) = &job.session.partial_image {
+                files.push((p.clone(), false, false));
+            }
+        }
+        Stop::Complete | Stop::TimeLimit => {
+            if let Some(out) = &job.out {
+                files.push((out.clone(), true, false));
+            }
+            if let Some(partial) = &job.partial {
+                files.push((partial.clone(), true, true));
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    for (path, is_final, is_partial_file) in files {
         let t = Instant::now();
-        let r = write_image(&path, film.width, film.height, &film.to_rgb());
+        let r = write_output(&path, film, &job.meta);
         let secs = t.elapsed().as_secs_f64();
         if is_final {
-            stages.output = secs;
+            stages.output += secs;
         } else {
             stages.partial_images += secs;
         }
-        output = r.is_ok().then(|| path.display().to_string());
-        r
-    });
-    if let Some(Err(e)) = written {
-        if let Err(c) = saved {
-            eprintln!("error: {c}");
+        match r {
+            Ok(()) if is_partial_file => partial_written = Some(path.display().to_string()),
+            Ok(()) => output = Some(path.display().to_string()),
+            Err(e) => errors.push(e),
         }
-        return Err(e);
     }
-    checkpoints_saved += saved? as u32;
+    // `output` names what was written: --out (or the --write-partial image
+    // after a signal), or else the --partial file.
+    if output.is_none() {
+        output.clone_from(&partial_written);
+    }
+    match saved {
+        Ok(saved) => checkpoints_saved += saved as u32,
+        Err(e) => errors.insert(0, e),
+    }
+    if let Some(last) = errors.pop() {
+        for e in errors {
+            eprintln!("error: {e}");
+        }
+        return Err(last);
+    }
     stages.checkpoint = checkpoint_seconds;
 
     let counters = report.counters;
@@ -367,6 +464,8 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         spp: film.samples_per_pixel(),
         spp_requested: s.spp,
         spp_resumed: report.start_spp,
+        samples: [job.work.range.start, job.work.range.end],
+        shard: job.work.shard.map(|(i, n)| [i, n]),
         max_depth: s.max_depth,
         seed: s.seed,
         threads: s.threads,
@@ -396,6 +495,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         bvh_nodes: renderer.bvh().node_count(),
         build_seconds: renderer.bvh().build_seconds(),
         bvh_bytes: renderer.bvh().bytes(),
+        partial: partial_written,
     };
     if film.invalid_samples > 0 {
         eprintln!(
@@ -410,9 +510,55 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     Ok(ExitCode::from(report.stop.exit_status()))
 }
 
+/// What a render does, in words: the banner on a terminal, and what
+/// `--check` prints.
+fn describe(job: &Job) -> String {
+    let s = &job.settings;
+    let resume = match &job.resume {
+        Some(path) => format!(", resuming {}", path.display()),
+        None => String::new(),
+    };
+    let outputs: Vec<String> = job
+        .out
+        .iter()
+        .chain(&job.partial)
+        .map(|p| p.display().to_string())
+        .collect();
+    format!(
+        "{} at {}x{}, {} spp{}, max depth {}, seed {}, {} thread(s), {} engine{resume} -> {}",
+        job.scene.name,
+        s.width,
+        s.height,
+        s.spp,
+        range_note(&job.work, s.spp),
+        s.max_depth,
+        s.seed,
+        s.threads,
+        s.engine.name(),
+        outputs.join(", ")
+    )
+}
+
+/// " (samples A..B of 0..spp, shard I/N)" when a render does less than
+/// `0..spp`; empty for a whole render.
+fn range_note(work: &SampleWork, spp: u32) -> String {
+    let r = &work.range;
+    match work.shard {
+        _ if *r == (0..spp) => String::new(),
+        Some((i, n)) => format!(
+            " (samples {}..{} of 0..{spp}, shard {i}/{n})",
+            r.start, r.end
+        ),
+        None => format!(" (samples {}..{} of 0..{spp})", r.start, r.end),
+    }
+}
+
 /// The one line a render prints at the end (on stdout).
 fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStats) -> String {
     let done = stats.spp;
+    // The samples per pixel this run was to hold: --spp, or the shard's.
+    let wanted = job.work.range.end - job.work.range.start;
+    let range = range_note(&job.work, job.settings.spp);
     let resumed = match (&job.resume, report.start_spp) {
         (Some(path), n) => format!(" (resumed from {} at {n} spp)", path.display()),
         (None, _) => String::new(),
@@ -427,14 +573,20 @@ fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStat
     match report.stop {
         Stop::Complete | Stop::TimeLimit => {
             let limit = if report.stop == Stop::TimeLimit {
-                format!(" of {} (time limit)", stats.spp_requested)
+                format!(" of {wanted} (time limit)")
             } else {
                 String::new()
             };
+            let written: Vec<String> = job
+                .out
+                .iter()
+                .chain(&job.partial)
+                .map(|p| p.display().to_string())
+                .collect();
             format!(
-                "rendered {done} spp{limit}{resumed} in {:.3} s: {speed} -> {}",
+                "rendered {done} spp{limit}{range}{resumed} in {:.3} s: {speed} -> {}",
                 stats.seconds,
-                job.out.display()
+                written.join(", ")
             )
         }
         Stop::Signal(sig) => {
@@ -446,9 +598,8 @@ fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStat
                 None => "no --checkpoint was given, so the samples are lost".into(),
             };
             format!(
-                "stopped by {} at {done} of {} spp{resumed} after {:.3} s: {saved}",
+                "stopped by {} at {done} of {wanted} spp{range}{resumed} after {:.3} s: {saved}",
                 crate::session::signal_name(sig),
-                stats.spp_requested,
                 stats.seconds
             )
         }

@@ -28,6 +28,9 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// Partial files that, merged, lack some samples of the render.
+    #[error("merge: {0}")]
+    Incomplete(crate::merge::MissingSamples),
 }
 
 /// `Result` with [`Error`].

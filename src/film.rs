@@ -102,17 +102,62 @@ impl Film {
             .collect()
     }
 
+    /// Add another film's samples to this one: its sums, its sample
+    /// ranges and its invalid-sample count. Exact, like every film sum:
+    /// merging the films of disjoint sample ranges gives the same film, bit
+    /// for bit, as rendering all of them into one. Refuses (changing
+    /// nothing) a film of another size or one holding a sample index this
+    /// film already holds.
+    pub fn merge(&mut self, other: &Film) -> Result<(), MergeError> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(MergeError::Size {
+                theirs: (other.width, other.height),
+                ours: (self.width, self.height),
+            });
+        }
+        for theirs in &other.ranges {
+            if let Some(ours) = self
+                .ranges
+                .iter()
+                .find(|r| theirs.start < r.end && r.start < theirs.end)
+            {
+                return Err(MergeError::Overlap {
+                    theirs: theirs.clone(),
+                    ours: ours.clone(),
+                });
+            }
+        }
+        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += y;
+            }
+        }
+        for r in &other.ranges {
+            self.add_range(r.clone());
+        }
+        self.invalid_samples += other.invalid_samples;
+        Ok(())
+    }
+
     /// Write this film as an accumulation file (atomically): a header, the
     /// sums, and a checksum. `settings_hash` identifies the scene and the
     /// settings that change the image, so files of other renders are refused.
     pub fn save(&self, path: &Path, settings_hash: u128) -> Result<(), Error> {
+        self.save_with_meta(path, &AccMeta::new(settings_hash))
+    }
+
+    /// [`Film::save`] with the optional facts of [`AccMeta`] (the whole
+    /// render's sample count, the shard) in the header as well.
+    pub fn save_with_meta(&self, path: &Path, meta: &AccMeta) -> Result<(), Error> {
         let header = AccHeader {
             format: ACC_FORMAT.into(),
             width: self.width,
             height: self.height,
-            settings_hash: format!("{settings_hash:032x}"),
+            settings_hash: format!("{:032x}", meta.settings_hash),
             ranges: self.ranges.iter().map(|r| [r.start, r.end]).collect(),
             invalid_samples: self.invalid_samples,
+            spp: meta.spp,
+            shard: meta.shard.map(|(i, n)| [i, n]),
         };
         let header = serde_json::to_vec(&header).expect("header serialises");
         let mut bytes = Vec::with_capacity(16 + header.len() + self.sums.len() * 48 + 16);
@@ -133,6 +178,16 @@ impl Film {
     /// one whose settings hash is not `expected_hash` (when given).
     /// Returns the film and the file's settings hash.
     pub fn load(path: &Path, expected_hash: Option<u128>) -> Result<(Self, u128), Error> {
+        Self::load_with_meta(path, expected_hash).map(|(film, meta)| (film, meta.settings_hash))
+    }
+
+    /// [`Film::load`], returning the header's [`AccMeta`] as well. A range
+    /// beyond the header's `spp`, or a shard whose index is not below its
+    /// count, is refused as corrupt.
+    pub fn load_with_meta(
+        path: &Path,
+        expected_hash: Option<u128>,
+    ) -> Result<(Self, AccMeta), Error> {
         let bad = |message: String| Error::Accumulation {
             path: path.to_path_buf(),
             message,
@@ -200,7 +255,26 @@ impl Film {
             }
             film.add_range(a..b);
         }
-        Ok((film, hash))
+        if let Some(spp) = header.spp
+            && let Some(last) = film.ranges.last()
+            && last.end > spp
+        {
+            return Err(bad(format!(
+                "holds samples up to {} of a {spp}-sample render",
+                last.end
+            )));
+        }
+        if let Some([i, n]) = header.shard
+            && i >= n
+        {
+            return Err(bad(format!("bad shard {i}/{n}")));
+        }
+        let meta = AccMeta {
+            settings_hash: hash,
+            spp: header.spp,
+            shard: header.shard.map(|[i, n]| (i, n)),
+        };
+        Ok((film, meta))
     }
 }
 
@@ -216,9 +290,62 @@ struct AccHeader {
     settings_hash: String,
     ranges: Vec<[u32; 2]>,
     invalid_samples: u64,
+    /// Added for shards: absent in files that do not say it, so files
+    /// without it are byte-for-byte what they were before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    spp: Option<u32>,
+    /// Added for shards, like `spp`: `[index, count]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    shard: Option<[u32; 2]>,
+}
+
+/// What an accumulation file's header says besides the film itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AccMeta {
+    /// The scene-and-settings hash ([`crate::render::RenderSettings::image_hash`]).
+    pub settings_hash: u128,
+    /// The samples per pixel of the whole render this film is (part of),
+    /// when known: what a merge must cover.
+    pub spp: Option<u32>,
+    /// `(index, count)` when the film is one shard of `count`.
+    pub shard: Option<(u32, u32)>,
+}
+
+impl AccMeta {
+    /// Just a settings hash, nothing else known.
+    pub fn new(settings_hash: u128) -> Self {
+        Self {
+            settings_hash,
+            spp: None,
+            shard: None,
+        }
+    }
+}
+
+/// Why [`Film::merge`] refused a film.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MergeError {
+    /// The films are of different sizes.
+    #[error("image is {}x{}, expected {}x{}", theirs.0, theirs.1, ours.0, ours.1)]
+    Size {
+        /// The refused film's width and height.
+        theirs: (u32, u32),
+        /// The receiving film's width and height.
+        ours: (u32, u32),
+    },
+    /// Both films hold some of the same sample indices.
+    #[error("samples {}..{} overlap samples {}..{} already merged", theirs.start, theirs.end, ours.start, ours.end)]
+    Overlap {
+        /// A range of the refused film.
+        theirs: Range<u32>,
+        /// The range of the receiving film it overlaps.
+        ours: Range<u32>,
+    },
 }
 
 #[cfg(test)]
+// Films hold lists of sample ranges; a list of one range is what is meant.
+#[allow(clippy::single_range_in_vec_init)]
 mod tests {
     use super::*;
 
@@ -256,6 +383,78 @@ mod tests {
         f.add_range(10..12);
         assert_eq!(f.ranges, vec![0..8, 10..12]);
         assert_eq!(f.samples_per_pixel(), 10);
+    }
+
+    fn film_of(ranges: &[Range<u32>], value: u128) -> Film {
+        let mut f = Film::new(2, 1);
+        f.sums = vec![[value, value + 1, value + 2], [value * 3, 0, 1]];
+        for r in ranges {
+            f.add_range(r.clone());
+        }
+        f
+    }
+
+    #[test]
+    fn merge_adds_sums_ranges_and_invalid_counts() {
+        let mut a = film_of(&[0..4], 10);
+        let mut b = film_of(&[4..6, 8..9], 7);
+        b.invalid_samples = 2;
+        a.merge(&b).unwrap();
+        assert_eq!(a.sums, vec![[17, 19, 21], [51, 0, 2]]);
+        assert_eq!(a.ranges, vec![0..6, 8..9]);
+        assert_eq!(a.invalid_samples, 2);
+    }
+
+    #[test]
+    fn merge_refuses_overlaps_and_other_sizes_changing_nothing() {
+        let mut a = film_of(&[0..4, 8..12], 10);
+        let before = a.clone();
+        assert_eq!(
+            a.merge(&film_of(&[4..9], 1)),
+            Err(MergeError::Overlap {
+                theirs: 4..9,
+                ours: 8..12
+            })
+        );
+        assert!(matches!(
+            a.merge(&Film::new(1, 2)),
+            Err(MergeError::Size { .. })
+        ));
+        assert_eq!(a, before);
+    }
+
+    #[test]
+    fn meta_round_trips_and_plain_saves_are_unchanged() {
+        let dir = std::env::temp_dir().join(format!("wavetrace-film-meta-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = film_of(&[16..32], 5);
+        let meta = AccMeta {
+            settings_hash: 0xabc,
+            spp: Some(64),
+            shard: Some((1, 4)),
+        };
+        let (with, plain) = (dir.join("with.wtacc"), dir.join("plain.wtacc"));
+        f.save_with_meta(&with, &meta).unwrap();
+        f.save(&plain, 0xabc).unwrap();
+        assert_eq!(
+            Film::load_with_meta(&with, Some(0xabc)).unwrap(),
+            (f.clone(), meta)
+        );
+        let (g, plain_meta) = Film::load_with_meta(&plain, None).unwrap();
+        assert_eq!((g, plain_meta), (f.clone(), AccMeta::new(0xabc)));
+        // A file without the new fields has none of their keys in its header.
+        let bytes = std::fs::read(&plain).unwrap();
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(!text.contains("\"spp\"") && !text.contains("\"shard\""));
+        // A range beyond the header's spp is refused as corrupt.
+        let bad = AccMeta {
+            spp: Some(20),
+            ..meta
+        };
+        f.save_with_meta(&with, &bad).unwrap();
+        let e = Film::load_with_meta(&with, None).unwrap_err().to_string();
+        assert!(e.contains("with.wtacc") && e.contains("20-sample"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

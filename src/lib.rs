@@ -14,8 +14,9 @@
 //! - [`film`]: exact fixed-point accumulation of samples;
 //! - [`output`]: PNG, EXR and PFM images, written atomically;
 //! - [`render`]: settings and the driver that runs an engine;
-//! - [`session`]: long renders in passes: progress, time limits,
-//!   checkpoints and resume;
+//! - [`session`]: the render loop, in sample passes: progress, time
+//!   limits, checkpoints and resume, for a whole render or one shard;
+//! - [`shard`], [`merge`]: render farms: sample-range shards, exact merges;
 //! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
 //!
 //! [`real`] holds the one numeric source shared by scalar and 8-wide code.
@@ -28,6 +29,7 @@ pub mod cli;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod merge;
 pub mod mesh;
 pub mod output;
 pub mod profile;
@@ -37,6 +39,7 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod session;
+pub mod shard;
 pub mod stats;
 pub mod wavefront;
 

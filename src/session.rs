@@ -2,9 +2,14 @@
 //! progress can be shown, a time limit kept, and the work saved to a
 //! checkpoint periodically and when the process is asked to stop.
 //!
-//! A [`Session`] renders the samples a [`Film`] is missing, in passes of
-//! whole samples per pixel (every pixel gets samples `a..b`, through
-//! [`Renderer::render_samples`]). Passes are sized from the measured speed to
+//! A [`Session`] renders the samples of its *target range* that a [`Film`]
+//! is missing, in passes of whole samples per pixel (every pixel gets
+//! samples `a..b`, through [`Renderer::render_samples`]). The target range
+//! is `0..spp` for a whole render, or one shard's sample range
+//! ([`SessionOptions::samples`], see [`crate::shard`]): a shard is rendered
+//! by the same loop, with the same progress, time limit, checkpoints and
+//! partial outputs, and its checkpoints are accumulation files like its
+//! partial file (same format, same header, see [`crate::film::AccMeta`]). Passes are sized from the measured speed to
 //! last about [`SessionOptions::pass_target`] (0.5 s by default; never less
 //! than one sample per pixel), so that between two passes — where signals,
 //! the time limit, checkpoints and partial images are looked at — there is
@@ -16,9 +21,9 @@
 //! bit of the image.
 
 use crate::error::{Error, Result};
-use crate::film::Film;
-use crate::output::write_image;
+use crate::film::{AccMeta, Film};
 use crate::render::{Counters, RenderSettings, Renderer};
+use crate::shard::write_output;
 use indicatif::{HumanDuration, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::ops::Range;
 use std::path::PathBuf;
@@ -40,6 +45,9 @@ pub const EXIT_ABORTED: i32 = 1;
 /// How a session renders beyond "all the samples, as fast as possible".
 #[derive(Clone, Debug)]
 pub struct SessionOptions {
+    /// The sample indices to render, within `0..spp`: a shard's range
+    /// (`--samples A..B`, `--shard I/N`); `None` for all of `0..spp`.
+    pub samples: Option<Range<u32>>,
     /// Stop, once the next pass would not fit, this long after the session
     /// started. At least one pass is always rendered.
     pub time_limit: Option<Duration>,
@@ -48,8 +56,9 @@ pub struct SessionOptions {
     pub checkpoint: Option<PathBuf>,
     /// The interval between checkpoints.
     pub checkpoint_every: Duration,
-    /// Write the current image to this file every
-    /// [`partial_every`](Self::partial_every) (`None`: never).
+    /// Write the film so far to this file every
+    /// [`partial_every`](Self::partial_every) (`None`: never): an image, or
+    /// an accumulation file for `.wtacc` (as [`write_output`] does).
     pub partial_image: Option<PathBuf>,
     /// The interval between partial images.
     pub partial_every: Duration,
@@ -62,6 +71,7 @@ pub struct SessionOptions {
 impl Default for SessionOptions {
     fn default() -> Self {
         Self {
+            samples: None,
             time_limit: None,
             checkpoint: None,
             checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
@@ -196,37 +206,46 @@ pub struct SessionReport {
     pub partial_seconds: f64,
 }
 
-/// The render loop of one run: renders the samples `0..spp` that a film is
-/// missing, in passes.
+/// The render loop of one run: renders the samples of the target range
+/// ([`Session::target`]) that a film is missing, in passes.
 pub struct Session<'a> {
     renderer: &'a Renderer,
-    settings_hash: u128,
+    meta: AccMeta,
     options: SessionOptions,
     /// Samples per pixel of the film at the last checkpoint.
     saved_spp: Option<u64>,
 }
 
 impl<'a> Session<'a> {
-    /// A session for `renderer`, whose settings hash (for checkpoints) is
-    /// `settings_hash` — [`crate::render::RenderSettings::image_hash`].
-    pub fn new(renderer: &'a Renderer, settings_hash: u128, options: SessionOptions) -> Self {
+    /// A session for `renderer`. `meta` is the header of the accumulation
+    /// files it writes (checkpoints, and `.wtacc` partial outputs): the
+    /// settings hash ([`crate::render::RenderSettings::image_hash`]), the
+    /// render's `spp` and the shard, as in the render's partial file.
+    pub fn new(renderer: &'a Renderer, meta: AccMeta, options: SessionOptions) -> Self {
         Self {
             renderer,
-            settings_hash,
+            meta,
             options,
             saved_spp: None,
         }
     }
 
-    /// Render what `film` is missing of samples `0..spp`, until done, out
-    /// of time, or interrupted. Checkpoints and partial images are written
+    /// The sample range this session renders:
+    /// [`SessionOptions::samples`], or `0..spp`.
+    pub fn target(&self) -> Range<u32> {
+        target_range(&self.options, self.renderer.settings())
+    }
+
+    /// Render what `film` is missing of the [target range](Self::target),
+    /// until done, out of time, or interrupted. `film` must hold no sample
+    /// outside the target range ([`check_resumable`]). Checkpoints and partial images are written
     /// as they fall due; one that cannot be written is reported as a
     /// warning and tried again at the next interval. The final
     /// checkpoint and image are left to the caller
     /// ([`save_checkpoint`](Self::save_checkpoint)).
     pub fn run(&mut self, mut film: Film, interrupt: &Interrupt) -> Result<SessionReport> {
-        check_resumable(&film, self.renderer.settings()).map_err(Error::Settings)?;
-        let spp = self.renderer.settings().spp;
+        let target = self.target();
+        check_resumable(&film, self.renderer.settings(), &target).map_err(Error::Settings)?;
         let o = self.options.clone();
         let start = Instant::now();
         let start_spp = film.samples_per_pixel();
@@ -248,7 +267,9 @@ impl<'a> Session<'a> {
             partial_images: 0,
             partial_seconds: 0.0,
         };
-        let bar = progress_bar(o.progress, spp as u64, start_spp);
+        // The bar counts the target range's samples (a shard's, say).
+        let total = (target.end - target.start) as u64;
+        let bar = progress_bar(o.progress, total, start_spp);
         let mut next_checkpoint = o.checkpoint.as_ref().map(|_| o.checkpoint_every);
         let mut next_partial = o.partial_image.as_ref().map(|_| o.partial_every);
         // Seconds per sample per pixel, measured by the last pass.
@@ -258,7 +279,7 @@ impl<'a> Session<'a> {
             if let Some(sig) = interrupt.requested() {
                 break Stop::Signal(sig);
             }
-            let Some(gap) = first_gap(&film.ranges, spp) else {
+            let Some(gap) = first_gap(&film.ranges, &target) else {
                 break Stop::Complete;
             };
             let now = start.elapsed();
@@ -304,7 +325,7 @@ impl<'a> Session<'a> {
                 && now >= due
             {
                 let t = Instant::now();
-                match write_image(path, film.width, film.height, &film.to_rgb()) {
+                match write_output(path, &film, &self.meta) {
                     Ok(()) => report.partial_images += 1,
                     Err(e) => bar.suspend(|| {
                         eprintln!("warning: partial image not written (will try again): {e}")
@@ -313,7 +334,7 @@ impl<'a> Session<'a> {
                 report.partial_seconds += t.elapsed().as_secs_f64();
                 next_partial = Some(start.elapsed().saturating_add(o.partial_every));
             }
-            update_progress(&bar, &report, done, spp, per_sample, o.time_limit, start);
+            update_progress(&bar, &report, done, total, per_sample, o.time_limit, start);
         };
         bar.finish_and_clear();
         report.elapsed_seconds = start.elapsed().as_secs_f64();
@@ -321,9 +342,10 @@ impl<'a> Session<'a> {
         Ok(report)
     }
 
-    /// Save `film` to the checkpoint file (atomically), unless there is no
-    /// checkpoint file or it already holds exactly these samples. Returns
-    /// whether a file was written.
+    /// Save `film` to the checkpoint file (atomically, with the session's
+    /// [`AccMeta`]: the same format and header as the render's partial
+    /// file), unless there is no checkpoint file or it already holds
+    /// exactly these samples. Returns whether a file was written.
     pub fn save_checkpoint(&mut self, film: &Film) -> Result<bool> {
         let Some(path) = &self.options.checkpoint else {
             return Ok(false);
@@ -332,38 +354,68 @@ impl<'a> Session<'a> {
         if self.saved_spp == Some(spp) && path.exists() {
             return Ok(false);
         }
-        film.save(path, self.settings_hash)?;
+        film.save_with_meta(path, &self.meta)?;
         self.saved_spp = Some(spp);
         Ok(true)
     }
 }
 
-/// Whether `film` can be continued to `settings.spp` samples per pixel: it
-/// has the settings' size and holds no sample at or beyond `spp`. The
-/// error says what is wrong.
-pub fn check_resumable(film: &Film, settings: &RenderSettings) -> std::result::Result<(), String> {
+/// The sample range `options` asks for: [`SessionOptions::samples`], or
+/// `0..settings.spp`.
+pub fn target_range(options: &SessionOptions, settings: &RenderSettings) -> Range<u32> {
+    options.samples.clone().unwrap_or(0..settings.spp)
+}
+
+/// Whether `film` can be continued to the sample range `target` of a render
+/// with `settings`: it has the settings' size and holds no sample outside
+/// `target` (for a whole render, `0..spp`: no sample at or beyond `spp`). A
+/// checkpoint of a shard therefore resumes with that shard's range, or with
+/// any range that contains it. The error says what is wrong.
+pub fn check_resumable(
+    film: &Film,
+    settings: &RenderSettings,
+    target: &Range<u32>,
+) -> std::result::Result<(), String> {
     if (film.width, film.height) != (settings.width, settings.height) {
         return Err(format!(
             "made for a {}x{} image, not {}x{}",
             film.width, film.height, settings.width, settings.height
         ));
     }
-    match film.ranges.last() {
-        Some(last) if last.end > settings.spp => Err(format!(
+    let (Some(first), Some(last)) = (film.ranges.first(), film.ranges.last()) else {
+        return Ok(());
+    };
+    if first.start >= target.start && last.end <= target.end {
+        return Ok(());
+    }
+    if *target == (0..settings.spp) {
+        return Err(format!(
             "holds samples up to {} ({} spp), more than --spp {}; ask for --spp {} or more",
             last.end,
             film.samples_per_pixel(),
             settings.spp,
             last.end
-        )),
-        _ => Ok(()),
+        ));
     }
+    let held: Vec<String> = film
+        .ranges
+        .iter()
+        .map(|r| format!("{}..{}", r.start, r.end))
+        .collect();
+    Err(format!(
+        "holds samples {}, outside samples {}..{} of {} that this render is to do; \
+         resume it with the --spp and --shard (or --samples) it was made with",
+        held.join(", "),
+        target.start,
+        target.end,
+        settings.spp
+    ))
 }
 
-/// The first run of samples in `0..spp` that `held` (sorted, disjoint
+/// The first run of samples in `target` that `held` (sorted, disjoint
 /// ranges) does not hold.
-pub fn first_gap(held: &[Range<u32>], spp: u32) -> Option<Range<u32>> {
-    let mut start = 0;
+pub fn first_gap(held: &[Range<u32>], target: &Range<u32>) -> Option<Range<u32>> {
+    let mut start = target.start;
     for r in held {
         if r.start > start {
             break;
@@ -374,8 +426,8 @@ pub fn first_gap(held: &[Range<u32>], spp: u32) -> Option<Range<u32>> {
         .iter()
         .map(|r| r.start)
         .find(|&s| s > start)
-        .unwrap_or(spp)
-        .min(spp);
+        .unwrap_or(target.end)
+        .min(target.end);
     (start < end).then_some(start..end)
 }
 
@@ -417,11 +469,13 @@ impl PassPlan {
     }
 }
 
-fn progress_bar(show: bool, spp: u64, done: u64) -> ProgressBar {
+/// A bar of `total` samples per pixel (the target range's), `done` of them
+/// already held.
+fn progress_bar(show: bool, total: u64, done: u64) -> ProgressBar {
     if !show {
         return ProgressBar::hidden();
     }
-    let bar = ProgressBar::with_draw_target(Some(spp), ProgressDrawTarget::stderr());
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
     let style = ProgressStyle::with_template(
         "{elapsed_precise} [{wide_bar}] {human_pos}/{human_len} spp  {msg}",
     )
@@ -438,7 +492,7 @@ fn update_progress(
     bar: &ProgressBar,
     report: &SessionReport,
     done: u64,
-    spp: u32,
+    total: u64,
     per_sample: Option<f64>,
     time_limit: Option<Duration>,
     start: Instant,
@@ -448,7 +502,7 @@ fn update_progress(
     }
     bar.set_position(done);
     let rays_per_second = report.counters.rays as f64 / report.render_seconds.max(1e-9);
-    let mut eta = per_sample.unwrap_or(0.0) * (spp as u64 - done) as f64;
+    let mut eta = per_sample.unwrap_or(0.0) * total.saturating_sub(done) as f64;
     let mut note = "";
     if let Some(limit) = time_limit {
         let left = limit.saturating_sub(start.elapsed()).as_secs_f64();
@@ -457,7 +511,7 @@ fn update_progress(
             note = " (time limit)";
             // The bar's end: the samples that will fit.
             let fit = (left / per_sample.unwrap_or(f64::INFINITY)).floor() as u64;
-            bar.set_length((done + fit).min(spp as u64));
+            bar.set_length((done + fit).min(total));
         }
     }
     bar.set_message(format!(
@@ -532,13 +586,61 @@ mod tests {
     #[test]
     #[allow(clippy::single_range_in_vec_init)] // lists of sample ranges
     fn gaps() {
-        assert_eq!(first_gap(&[], 8), Some(0..8));
-        assert_eq!(first_gap(&[0..8], 8), None);
-        assert_eq!(first_gap(&[0..3], 8), Some(3..8));
-        assert_eq!(first_gap(&[2..4], 8), Some(0..2));
-        assert_eq!(first_gap(&[0..2, 5..6], 8), Some(2..5));
-        assert_eq!(first_gap(&[0..2, 5..8], 8), Some(2..5));
-        assert_eq!(first_gap(&[0..8], 4), None);
+        assert_eq!(first_gap(&[], &(0..8)), Some(0..8));
+        assert_eq!(first_gap(&[0..8], &(0..8)), None);
+        assert_eq!(first_gap(&[0..3], &(0..8)), Some(3..8));
+        assert_eq!(first_gap(&[2..4], &(0..8)), Some(0..2));
+        assert_eq!(first_gap(&[0..2, 5..6], &(0..8)), Some(2..5));
+        assert_eq!(first_gap(&[0..2, 5..8], &(0..8)), Some(2..5));
+        assert_eq!(first_gap(&[0..8], &(0..4)), None);
+    }
+
+    #[test]
+    #[allow(clippy::single_range_in_vec_init)] // lists of sample ranges
+    fn gaps_in_a_shard_range() {
+        assert_eq!(first_gap(&[], &(16..32)), Some(16..32));
+        assert_eq!(first_gap(&[16..20], &(16..32)), Some(20..32));
+        assert_eq!(first_gap(&[16..20, 24..28], &(16..32)), Some(20..24));
+        assert_eq!(first_gap(&[16..32], &(16..32)), None);
+        assert_eq!(first_gap(&[20..24], &(16..32)), Some(16..20));
+        // Samples held outside the target do not count (a whole film
+        // continued as a shard would be refused by check_resumable first).
+        assert_eq!(first_gap(&[0..16], &(16..32)), Some(16..32));
+        assert_eq!(first_gap(&[0..20, 30..40], &(16..32)), Some(20..30));
+    }
+
+    #[test]
+    #[allow(clippy::single_range_in_vec_init)] // lists of sample ranges
+    fn resumable_only_within_the_target() {
+        let scene = crate::scene::Scene::cornell();
+        let mut settings = RenderSettings::for_scene(&scene);
+        (settings.width, settings.height, settings.spp) = (2, 2, 64);
+        let film = |ranges: &[Range<u32>]| {
+            let mut f = Film::new(2, 2);
+            for r in ranges {
+                f.add_range(r.clone());
+            }
+            f
+        };
+        let ok = |ranges: &[Range<u32>], target: Range<u32>| {
+            check_resumable(&film(ranges), &settings, &target)
+        };
+        assert!(ok(&[], 16..32).is_ok());
+        assert!(ok(&[16..20], 16..32).is_ok());
+        assert!(ok(&[16..32], 16..32).is_ok());
+        assert!(
+            ok(&[16..20], 0..64).is_ok(),
+            "a shard's film, finished whole"
+        );
+        let e = ok(&[16..20], 32..48).unwrap_err();
+        assert!(
+            e.contains("samples 16..20, outside samples 32..48 of 64"),
+            "{e}"
+        );
+        assert!(ok(&[8..20], 16..32).is_err());
+        let e = ok(&[0..80], 0..64).unwrap_err();
+        assert!(e.contains("more than --spp 64"), "{e}");
+        assert!(check_resumable(&Film::new(3, 2), &settings, &(0..64)).is_err());
     }
 
     #[test]

@@ -22,14 +22,21 @@ pub struct RenderStats {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// Samples per pixel in the image, including those of a resumed
-    /// checkpoint: the samples actually done, which a time limit or a
-    /// signal can make fewer than `spp_requested`.
+    /// Samples per pixel in the image (or partial file), including those
+    /// of a resumed checkpoint: the samples actually done, which a time
+    /// limit, a signal, or a shard (see `samples`) makes fewer than
+    /// `spp_requested`.
     pub spp: u64,
-    /// Samples per pixel asked for (`--spp`).
+    /// Samples per pixel of the whole render asked for (`--spp`).
     pub spp_requested: u32,
     /// Samples per pixel the resumed checkpoint held (0 for a new render).
     pub spp_resumed: u64,
+    /// The sample indices `[A, B)` this run was to render: `[0, spp]` for a
+    /// whole render, else `--samples A..B` or the shard's range. `spp` is
+    /// what it holds of them.
+    pub samples: [u32; 2],
+    /// `[index, count]` when rendering a shard (`--shard`), else null.
+    pub shard: Option<[u32; 2]>,
     /// Maximum path depth.
     pub max_depth: u32,
     /// Random seed.
@@ -85,8 +92,12 @@ pub struct RenderStats {
     pub build_seconds: f64,
     /// Memory held by the hierarchy's nodes and triangle packs, in bytes.
     pub bvh_bytes: usize,
-    /// The image written, if any.
+    /// What was written: the `--out` file (an image or a `.wtacc` partial
+    /// file), or the `--write-partial` image when a signal stopped the
+    /// render, or else the `--partial` file; null when nothing was.
     pub output: Option<String>,
+    /// The `--partial` file (`.wtacc`) written, if any.
+    pub partial: Option<String>,
 }
 
 /// Wall-clock seconds of the stages of a run.
@@ -101,9 +112,9 @@ pub struct Stages {
     pub render: f64,
     /// Saving checkpoints.
     pub checkpoint: f64,
-    /// Writing partial images.
+    /// Writing partial images (`--write-partial`).
     pub partial_images: f64,
-    /// Writing the final image.
+    /// Writing the final outputs: `--out` and the `--partial` file.
     pub output: f64,
 }
 

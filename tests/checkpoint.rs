@@ -535,3 +535,155 @@ fn a_finished_checkpoint_extends_to_more_samples() {
     );
     assert_eq!(spp_of(&dir.join("ck.wtacc")), 300);
 }
+
+/// A shard is rendered by the same session as a whole render: stopped by
+/// SIGINT part-way, its checkpoint is a partial file of the shard's samples
+/// so far (the shard in its header); resumed, the shard's partial file is
+/// the finished checkpoint byte for byte, and merged with the other shard
+/// it gives the uninterrupted single run's image byte for byte. Resuming
+/// as another shard is refused, the checkpoint left untouched.
+#[test]
+fn a_shard_stopped_by_sigint_resumes_and_merges_byte_identical() {
+    let dir = workdir("shard");
+    let spp = interrupt(
+        &dir,
+        libc::SIGINT,
+        &["--shard", "1/2", "--partial", "part-1.wtacc"],
+        "ck-1.wtacc",
+    );
+    assert!(spp < 3000, "shard 1/2 holds at most 3000 samples");
+    assert!(
+        !dir.join("part-1.wtacc").exists(),
+        "an interrupted shard writes no partial file"
+    );
+    let (film, meta) = Film::load_with_meta(&dir.join("ck-1.wtacc"), None).unwrap();
+    assert_eq!(meta.shard, Some((1, 2)));
+    assert_eq!(meta.spp, Some(6000));
+    assert_eq!(film.ranges.first().unwrap().start, 3000);
+    assert!(film.ranges.last().unwrap().end <= 6000);
+
+    // Not as another shard, nor as a whole render of fewer samples.
+    let ck = dir.join("ck-1.wtacc");
+    let before = std::fs::read(&ck).unwrap();
+    for (args, message) in [
+        (
+            &["--shard", "0/2", "--spp", SPP][..],
+            "outside samples 0..3000 of 6000",
+        ),
+        (&["--samples", "0..3000", "--spp", SPP], "outside samples"),
+        (&["--spp", "3000"], "more than --spp 3000"),
+    ] {
+        let mut all = vec!["--resume", "ck-1.wtacc", "--partial", "other.wtacc"];
+        all.extend_from_slice(args);
+        let o = run(&dir, &all);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", text(&o));
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            stderr.contains("ck-1.wtacc") && stderr.contains(message),
+            "{args:?}: expected {message:?}: {}",
+            text(&o)
+        );
+        assert!(!dir.join("other.wtacc").exists());
+    }
+    assert_eq!(std::fs::read(&ck).unwrap(), before, "checkpoint changed");
+
+    let o = run_ok(
+        &dir,
+        &[
+            "--spp",
+            SPP,
+            "--shard",
+            "1/2",
+            "--resume",
+            "ck-1.wtacc",
+            "--partial",
+            "part-1.wtacc",
+            "--threads",
+            "2",
+            "--stats",
+            "s.json",
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("(samples 3000..6000 of 0..6000, shard 1/2)")
+            && stdout.contains("resumed from ck-1.wtacc"),
+        "{}",
+        text(&o)
+    );
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("s.json")).unwrap()).unwrap();
+    assert_eq!(stats["spp"], 3000);
+    assert_eq!(stats["spp_resumed"], spp);
+    assert_eq!(stats["spp_requested"], 6000);
+    assert_eq!(stats["samples"], serde_json::json!([3000, 6000]));
+    assert_eq!(stats["shard"], serde_json::json!([1, 2]));
+    assert_eq!(stats["output"], "part-1.wtacc");
+    assert_eq!(stats["partial"], "part-1.wtacc");
+    assert_eq!(stats["stop"], "complete");
+    // Checkpoints and partial files are one format: the finished shard's
+    // checkpoint is its partial file.
+    assert_eq!(
+        std::fs::read(dir.join("part-1.wtacc")).unwrap(),
+        std::fs::read(&ck).unwrap()
+    );
+
+    run_ok(
+        &dir,
+        &["--spp", SPP, "--shard", "0/2", "--partial", "part-0.wtacc"],
+    );
+    let o = Command::new(BIN)
+        .current_dir(&dir)
+        .args([
+            "merge",
+            "part-1.wtacc",
+            "part-0.wtacc",
+            "--out",
+            "merged.png",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        std::fs::read(dir.join("merged.png")).unwrap(),
+        reference("png")
+    );
+}
+
+/// --time-limit on a shard: its partial file holds the whole passes done,
+/// and the stats say which samples of which shard.
+#[test]
+fn a_shard_keeps_its_time_limit() {
+    let dir = workdir("shard-time-limit");
+    let o = run_ok(
+        &dir,
+        &[
+            "--spp",
+            "4000000",
+            "--shard",
+            "3/4",
+            "--time-limit",
+            "0.5",
+            "--partial",
+            "part-3.wtacc",
+            "--stats",
+            "s.json",
+        ],
+    );
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("s.json")).unwrap()).unwrap();
+    assert_eq!(s["stop"], "time-limit", "{}", text(&o));
+    assert_eq!(s["samples"], serde_json::json!([3000000, 4000000]));
+    let spp = s["spp"].as_u64().unwrap();
+    assert!((1..1_000_000).contains(&spp), "{spp}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains(&format!("rendered {spp} spp of 1000000 (time limit)")),
+        "{}",
+        text(&o)
+    );
+    let (film, meta) = Film::load_with_meta(&dir.join("part-3.wtacc"), None).unwrap();
+    assert_eq!(film.ranges.len(), 1);
+    assert_eq!(film.ranges[0], 3000000..3000000 + spp as u32);
+    assert_eq!(meta.shard, Some((3, 4)));
+}
