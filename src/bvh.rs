@@ -6,7 +6,7 @@
 //! structure-of-arrays form, so one ray is tested against all eight boxes
 //! with a handful of AVX2 instructions. Leaves are runs of 1 to
 //! [`MAX_LEAF_PACKS`] [`Triangle8`] packs: the very SoA packs and the very
-//! Möller–Trumbore kernel of [`closest_hit_packs`](crate::geometry::closest_hit_packs).
+//! Möller–Trumbore kernel of [`closest_hit_packs`].
 //!
 //! # Build
 //!
