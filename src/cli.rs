@@ -518,12 +518,6 @@ fn describe(job: &Job) -> String {
         Some(path) => format!(", resuming {}", path.display()),
         None => String::new(),
     };
-    let outputs: Vec<String> = job
-        .out
-        .iter()
-        .chain(&job.partial)
-        .map(|p| p.display().to_string())
-        .collect();
     format!(
         "{} at {}x{}, {} spp{}, max depth {}, seed {}, {} thread(s), {} engine{resume} -> {}",
         job.scene.name,
@@ -535,8 +529,19 @@ fn describe(job: &Job) -> String {
         s.seed,
         s.threads,
         s.engine.name(),
-        outputs.join(", ")
+        outputs(job)
     )
+}
+
+/// The files a render writes at the end, comma-separated.
+fn outputs(job: &Job) -> String {
+    let files: Vec<String> = job
+        .out
+        .iter()
+        .chain(&job.partial)
+        .map(|p| p.display().to_string())
+        .collect();
+    files.join(", ")
 }
 
 /// " (samples A..B of 0..spp, shard I/N)" when a render does less than
@@ -577,16 +582,10 @@ fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStat
             } else {
                 String::new()
             };
-            let written: Vec<String> = job
-                .out
-                .iter()
-                .chain(&job.partial)
-                .map(|p| p.display().to_string())
-                .collect();
             format!(
                 "rendered {done} spp{limit}{range}{resumed} in {:.3} s: {speed} -> {}",
                 stats.seconds,
-                written.join(", ")
+                outputs(job)
             )
         }
         Stop::Signal(sig) => {
