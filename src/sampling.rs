@@ -10,9 +10,15 @@ use crate::real::{Real, V3, sin_cos_2pi};
 use rand_core::Rng;
 use rand_pcg::Pcg32;
 
-/// The random stream of one camera sample.
-#[derive(Clone, Debug)]
-pub struct PathRng(Pcg32);
+/// The random stream of one camera sample: a `rand_pcg::Pcg32` kept as its
+/// two plain words (state and stream), so that a queue's column of them is
+/// plain old data (`bytemuck::Pod`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct PathRng {
+    state: u64,
+    stream: u64,
+}
 
 impl PathRng {
     /// The stream for sample `sample` of pixel `pixel` under `seed`.
@@ -21,13 +27,23 @@ impl PathRng {
         // A hashed starting state per (seed, pixel, sample) on the seed's
         // stream: a path draws a handful of numbers from a period of 2^64.
         let state = splitmix64(seed ^ splitmix64(((pixel as u64) << 32) | sample as u64));
-        Self(Pcg32::new(state, seed))
+        Self::from_pcg(&Pcg32::new(state, seed))
+    }
+
+    fn from_pcg(pcg: &Pcg32) -> Self {
+        Self {
+            state: pcg.state(),
+            stream: pcg.stream(),
+        }
     }
 
     /// A uniform number in `[0, 1)` with 24 random bits.
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+        let mut pcg = Pcg32::from_state(self.state, self.stream);
+        let bits = pcg.next_u32();
+        self.state = pcg.state();
+        (bits >> 8) as f32 * (1.0 / 16_777_216.0)
     }
 }
 
@@ -71,6 +87,18 @@ pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
 mod tests {
     use super::*;
     use wide::f32x8;
+
+    #[test]
+    fn draws_are_rand_pcg_draws() {
+        // PathRng keeps Pcg32's words; the numbers are Pcg32's own.
+        let mut ours = PathRng::new(42, 7, 3);
+        let state = splitmix64(42 ^ splitmix64((7u64 << 32) | 3));
+        let mut theirs = Pcg32::new(state, 42);
+        for _ in 0..100 {
+            let want = (theirs.next_u32() >> 8) as f32 / 16_777_216.0;
+            assert_eq!(ours.next_f32().to_bits(), want.to_bits());
+        }
+    }
 
     #[test]
     fn streams_differ_by_pixel_sample_and_seed() {

@@ -3,10 +3,21 @@
 use crate::sampling::PathRng;
 use wide::f32x8;
 
+// Every column's element type is plain old data.
+const _: fn() = || {
+    fn pod<T: bytemuck::Pod>() {}
+    pod::<u32>();
+    pod::<f32>();
+    pod::<PathRng>();
+};
+
 /// Marks a ray that hit nothing in [`PathQueue::hit`].
 pub const MISS: u32 = u32::MAX;
 
 /// The state of a batch of paths in structure-of-arrays form.
+///
+/// Every column is plain old data (`bytemuck::Pod`): numbers, and the
+/// random streams as their two words.
 ///
 /// Row `i < len()` of every column belongs to path `i`. Columns are
 /// allocated once, for the batch size rounded up to a multiple of 8, so the
@@ -108,7 +119,7 @@ impl PathQueue {
     #[inline]
     pub fn move_row(&mut self, from: usize, to: usize) {
         self.pixel[to] = self.pixel[from];
-        self.rng[to] = self.rng[from].clone();
+        self.rng[to] = self.rng[from];
         for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
             for col in cols.iter_mut() {
                 col[to] = col[from];
