@@ -81,6 +81,10 @@ pub struct RenderArgs {
     /// Path tracer.
     #[arg(long, value_enum)]
     pub engine: Option<Engine>,
+    /// Paths per wavefront batch [default: 4096]. A tuning knob for
+    /// benchmarks: it never changes the image.
+    #[arg(long, value_name = "PATHS")]
+    pub batch_size: Option<usize>,
     /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float), or
     /// .wtacc for a partial file. Default: the scene file's name with .png
     /// (cornell.png), or none when --partial is given.
@@ -201,6 +205,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         None => crate::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
+    settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.validate()?;
     let work = args.farm.resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
