@@ -952,8 +952,8 @@ fn prefetch_lines<T>(p: &T, lines: usize) {
     let _ = (p, lines);
 }
 
-/// A leaf pack on its own cache lines (a [`Triangle8`] is 320 bytes, five
-/// lines: aligned to 64 it never straddles a sixth).
+/// A leaf pack on its own cache lines (a [`Triangle8`] is 416 bytes,
+/// 6.5 lines: aligned to 64 it takes exactly seven, never eight).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Pack(Triangle8);
