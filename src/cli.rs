@@ -272,6 +272,12 @@ fn plan(args: RenderArgs) -> Result<Job> {
         }
         check_writable(path)?;
     }
+    check_distinct(&[
+        ("--out", out.as_deref()),
+        ("--partial", partial.as_deref()),
+        ("--stats", args.stats.as_deref()),
+        ("the checkpoint", checkpoint.as_deref()),
+    ])?;
     // The checkpoint to continue is read and checked in full before any
     // work: a missing, truncated, corrupt or foreign one is refused here and
     // left as it is. Its samples must lie within this render's sample range
@@ -333,13 +339,43 @@ fn plan(args: RenderArgs) -> Result<Job> {
     })
 }
 
-/// Whether two paths name the same file (compared as written when either
-/// does not exist yet).
+/// Whether two paths name the same file, whether or not it exists yet:
+/// each is compared as its canonical directory plus its file name.
 fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(a), Ok(b)) => a == b,
+    fn normal(p: &std::path::Path) -> Option<PathBuf> {
+        if let Ok(full) = std::fs::canonicalize(p) {
+            return Some(full);
+        }
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => std::path::Path::new("."),
+        };
+        Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
+    }
+    match (normal(a), normal(b)) {
+        (Some(a), Some(b)) => a == b,
         _ => a == b,
     }
+}
+
+/// Refuse two outputs that name the same file: one would overwrite the
+/// other (a checkpoint overwritten by the stats, say).
+fn check_distinct(files: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
+    let files: Vec<(&str, &std::path::Path)> = files
+        .iter()
+        .filter_map(|(flag, p)| p.map(|p| (*flag, p)))
+        .collect();
+    for (i, (a, pa)) in files.iter().enumerate() {
+        for (b, pb) in &files[i + 1..] {
+            if same_file(pa, pb) {
+                return Err(Error::Settings(format!(
+                    "{}: {a} and {b} name the same file; one would overwrite the other",
+                    pa.display()
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn render(args: RenderArgs) -> Result<ExitCode> {

@@ -67,6 +67,13 @@ pub struct RenderSettings {
 /// Default paths per wavefront batch: the queues stay in the L2 cache.
 pub const DEFAULT_BATCH_SIZE: usize = 4096;
 
+/// The largest batch accepted (its queue takes about 70 MiB).
+pub const MAX_BATCH_SIZE: usize = 1 << 20;
+
+/// The deepest paths accepted: the reference tracer recurses once per
+/// bounce, and a uniform hemisphere estimator gains nothing from more.
+pub const MAX_DEPTH: u32 = 1024;
+
 impl RenderSettings {
     /// The scene's defaults: its resolution and depth, 1 sample per pixel,
     /// seed 0, all cores, the default engine.
@@ -101,8 +108,15 @@ impl RenderSettings {
         if self.threads == 0 {
             return bad("threads must be at least 1");
         }
-        if self.batch_size == 0 {
-            return bad("the batch size must be at least 1");
+        if !(1..=MAX_BATCH_SIZE).contains(&self.batch_size) {
+            return Err(Error::Settings(format!(
+                "the batch size must be between 1 and {MAX_BATCH_SIZE} paths"
+            )));
+        }
+        if self.max_depth > MAX_DEPTH {
+            return Err(Error::Settings(format!(
+                "max depth must be at most {MAX_DEPTH} (the reference tracer recurses once per bounce)"
+            )));
         }
         Ok(())
     }

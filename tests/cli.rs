@@ -162,6 +162,22 @@ fn impossible_settings_are_refused_before_any_work() {
     assert_refused(&dir, &["--engine", "warp", "--out", out], "warp");
     assert_refused(&dir, &["--samples", "4", "--out", out], "--samples");
     assert_refused(&dir, &["--spp", "-3", "--out", out], "-3");
+    assert_refused(&dir, &["--batch-size", "0", "--out", out], "batch size");
+    assert_refused(
+        &dir,
+        &["--batch-size", "18446744073709551615", "--out", out],
+        "batch size",
+    );
+    assert_refused(&dir, &["--max-depth", "100000", "--out", out], "max depth");
+    // Two outputs that are one file, however the paths are spelled.
+    let stats = dir.path("s.json");
+    let stats = stats.to_str().unwrap();
+    let dotted = format!("{}/./s.json", dir.path("").display());
+    assert_refused(
+        &dir,
+        &["--out", out, "--stats", stats, "--checkpoint", &dotted],
+        "name the same file",
+    );
 }
 
 #[test]

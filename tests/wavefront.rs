@@ -258,3 +258,24 @@ fn simd_intersector_equals_scalar_on_a_million_rays() {
         "{hits} hits of {count}"
     );
 }
+
+#[test]
+fn sample_ranges_ending_at_u32_max_render_exactly_their_samples() {
+    // Batches step through the range; near u32::MAX a plain `+` would wrap
+    // and start over at sample 0.
+    let scene = Scene::cornell();
+    let mut s = RenderSettings::for_scene(&scene);
+    (s.width, s.height, s.spp, s.batch_size) = (3, 2, u32::MAX, 5);
+    let range = u32::MAX - 13..u32::MAX;
+    let mut films = Vec::new();
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        s.engine = engine;
+        let renderer = Renderer::new(&scene, &s).unwrap();
+        let mut film = renderer.new_film();
+        let c = renderer.render_samples(range.clone(), &mut film);
+        assert_eq!(c.paths, 6 * 13, "{engine:?}");
+        assert_eq!(film.ranges, vec![range.clone()]);
+        films.push(film);
+    }
+    assert_close("u32::MAX range", &films[1], &films[0]);
+}

@@ -125,16 +125,18 @@ impl WavefrontEngine {
         sums: &mut [PixelSum],
     ) -> Counters {
         let mut counters = Counters::default();
-        let spp = samples.len() as u32;
+        let spp = samples.end - samples.start;
         // Whole pixels per batch when they fit; otherwise split the samples.
-        let pixels_per_batch = (batch_size as u32 / spp).max(1);
-        let samples_per_batch = spp.min(batch_size as u32).max(1);
+        // (`saturating_add`: ranges may end at u32::MAX.)
+        let batch = u32::try_from(batch_size).unwrap_or(u32::MAX);
+        let pixels_per_batch = (batch / spp.max(1)).max(1);
+        let samples_per_batch = spp.min(batch).max(1);
         let mut pixel = tile.start;
         while pixel < tile.end {
-            let pixels = pixel..(pixel + pixels_per_batch).min(tile.end);
+            let pixels = pixel..pixel.saturating_add(pixels_per_batch).min(tile.end);
             let mut s = samples.start;
             while s < samples.end {
-                let batch_samples = s..(s + samples_per_batch).min(samples.end);
+                let batch_samples = s..s.saturating_add(samples_per_batch).min(samples.end);
                 self.render_batch(
                     scratch,
                     camera,
