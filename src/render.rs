@@ -121,11 +121,14 @@ impl RenderSettings {
         Ok(())
     }
 
-    /// A hash of the scene and of every setting that changes the image's
-    /// bits (not the sample count, threads or batch size): partial films
-    /// of renders with equal hashes can be combined.
+    /// A hash of the scene, of every setting that changes the image's bits
+    /// (not the sample count, threads or batch size), and of how this build
+    /// computes samples ([`estimator_fingerprint`]): partial films of
+    /// renders with equal hashes can be combined, and a checkpoint or shard
+    /// from a build that samples differently is refused.
     pub fn image_hash(&self, scene: &Scene) -> u128 {
         let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(&estimator_fingerprint().to_le_bytes());
         h.update(&scene.content_hash().to_le_bytes());
         h.update(&self.width.to_le_bytes());
         h.update(&self.height.to_le_bytes());
@@ -134,6 +137,44 @@ impl RenderSettings {
         h.update(self.engine.name().as_bytes());
         h.digest128()
     }
+}
+
+/// The version of the estimator: bump it whenever a change alters the
+/// samples a path produces in a way [`estimator_fingerprint`]'s probes
+/// would not see (the order random numbers are drawn in, say).
+pub const ESTIMATOR_VERSION: u32 = 1;
+
+/// A fingerprint of how this build computes samples: [`ESTIMATOR_VERSION`]
+/// and the bits of a few probes of the shared kernels — random draws,
+/// a hemisphere direction, `sin_cos_2pi`, a Möller–Trumbore hit, the film's
+/// fixed-point scale. A change to any of them changes every image's bits,
+/// and so changes this fingerprint and [`RenderSettings::image_hash`].
+pub fn estimator_fingerprint() -> u64 {
+    use crate::geometry::{TriangleEdges, V3Tri, moller_trumbore};
+    use crate::real::{V3, sin_cos_2pi};
+    use crate::sampling::{PathRng, uniform_hemisphere};
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    let mut put = |x: f32| h.update(&x.to_bits().to_le_bytes());
+    let mut rng = PathRng::new(0x5EED, 7, 11);
+    for _ in 0..4 {
+        put(rng.next_f32());
+    }
+    let d = uniform_hemisphere(V3::new(0.6f32, -0.48, 0.64), 0.3, 0.7);
+    [d.x, d.y, d.z].into_iter().for_each(&mut put);
+    let (sin, cos) = sin_cos_2pi(0.123f32);
+    put(sin);
+    put(cos);
+    let tri = TriangleEdges::new(
+        glam::Vec3::new(-1.0, -1.0, 2.0),
+        glam::Vec3::new(1.5, -1.0, 2.5),
+        glam::Vec3::new(0.0, 1.0, 1.5),
+    );
+    let o = V3::new(0.1f32, 0.2, -0.3);
+    let (_, t) = moller_trumbore(o, V3::new(0.0, 0.0, 1.0), &V3Tri::from(&tri), 0.0);
+    put(t);
+    h.update(&crate::film::FIXED_POINT_SCALE.to_bits().to_le_bytes());
+    h.update(&ESTIMATOR_VERSION.to_le_bytes());
+    h.digest()
 }
 
 /// Seconds spent in each wavefront stage, summed over threads.
@@ -352,4 +393,37 @@ fn tile_pixels(s: &RenderSettings, samples: usize) -> usize {
     let per_batch = (s.batch_size / samples.max(1)).max(1);
     let for_balance = pixels.div_ceil(8 * s.threads).max(1);
     per_batch.min(for_balance)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_hash_follows_exactly_the_settings_that_change_bits() {
+        let scene = Scene::cornell();
+        let base = RenderSettings::for_scene(&scene);
+        let hash = |f: &dyn Fn(&mut RenderSettings)| {
+            let mut s = base.clone();
+            f(&mut s);
+            s.image_hash(&scene)
+        };
+        let h0 = hash(&|_| {});
+        // Settings that never change a sample's bits.
+        assert_eq!(h0, hash(&|s| s.spp = 999));
+        assert_eq!(h0, hash(&|s| s.threads = 7));
+        assert_eq!(h0, hash(&|s| s.batch_size = 3));
+        // Settings that do.
+        assert_ne!(h0, hash(&|s| s.seed = 1));
+        assert_ne!(h0, hash(&|s| s.width += 1));
+        assert_ne!(h0, hash(&|s| s.height += 1));
+        assert_ne!(h0, hash(&|s| s.max_depth += 1));
+        assert_ne!(h0, hash(&|s| s.engine = Engine::Reference));
+        // And the scene.
+        let mut other = scene.clone();
+        other.materials[0].reflectance.x *= 0.5;
+        assert_ne!(h0, base.image_hash(&other));
+        // The estimator's fingerprint is a pure function of the build.
+        assert_eq!(estimator_fingerprint(), estimator_fingerprint());
+    }
 }
