@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use wavetrace::film::Film;
 use wavetrace::output::write_image;
-use wavetrace::render::{RenderSettings, Renderer};
+use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::Scene;
 
 fn settings(seed: u64, threads: usize) -> RenderSettings {
@@ -18,9 +18,13 @@ fn settings(seed: u64, threads: usize) -> RenderSettings {
 }
 
 fn render(seed: u64, threads: usize) -> Film {
-    let (film, counters, _) = Renderer::new(&Scene::cornell(), &settings(seed, threads))
-        .unwrap()
-        .render();
+    render_with(seed, threads, Engine::Wavefront)
+}
+
+fn render_with(seed: u64, threads: usize, engine: Engine) -> Film {
+    let mut s = settings(seed, threads);
+    s.engine = engine;
+    let (film, counters, _) = Renderer::new(&Scene::cornell(), &s).unwrap().render();
     assert_eq!(counters.paths, 32 * 24 * 8);
     film
 }
@@ -88,13 +92,15 @@ fn the_same_seed_gives_the_same_film_and_the_same_image_bytes() {
 
 #[test]
 fn the_thread_count_does_not_change_the_film() {
-    let one = render(5, 1);
-    for threads in [2, 3] {
-        assert_same_film(
-            &one,
-            &render(5, threads),
-            &format!("1 vs {threads} threads"),
-        );
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        let one = render_with(5, 1, engine);
+        for threads in [2, 3] {
+            assert_same_film(
+                &one,
+                &render_with(5, threads, engine),
+                &format!("{engine:?}: 1 vs {threads} threads"),
+            );
+        }
     }
     // The settings hash that guards accumulation files ignores threads too.
     let scene = Scene::cornell();

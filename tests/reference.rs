@@ -15,7 +15,7 @@
 use glam::Vec3;
 use wavetrace::film::{FIXED_POINT_SCALE, Film};
 use wavetrace::reference::ReferenceTracer;
-use wavetrace::render::{RenderSettings, Renderer};
+use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::sampling::PathRng;
 use wavetrace::scene::{Scene, file};
 
@@ -227,17 +227,31 @@ fn furnace(reflectance: [f32; 3], emission: [f32; 3]) -> Scene {
     scene
 }
 
-/// Renders `scene` at 1 sample per pixel, max depth `depth`; returns the
-/// film and the number of rays cast.
+/// Renders `scene` at 1 sample per pixel, max depth `depth`, with the
+/// reference tracer; returns its film and the numbers of paths and rays.
+/// The wavefront engine renders it too and must trace the same paths: the
+/// same counts, and every pixel within 1e-5 (relative) of the reference.
 fn render(scene: &Scene, depth: u32, seed: u64) -> (Film, u64, u64) {
-    let mut settings = RenderSettings::for_scene(scene);
-    settings.spp = 1;
-    settings.max_depth = depth;
-    settings.seed = seed;
-    settings.threads = 2;
-    let (film, counters, _) = Renderer::new(scene, &settings).unwrap().render();
-    assert_eq!(film.invalid_samples, 0);
-    (film, counters.paths, counters.rays)
+    let run = |engine| {
+        let mut settings = RenderSettings::for_scene(scene);
+        settings.spp = 1;
+        settings.max_depth = depth;
+        settings.seed = seed;
+        settings.threads = 2;
+        settings.engine = engine;
+        let (film, counters, _) = Renderer::new(scene, &settings).unwrap().render();
+        assert_eq!(film.invalid_samples, 0);
+        (film, counters.paths, counters.rays)
+    };
+    let reference = run(Engine::Reference);
+    let wavefront = run(Engine::Wavefront);
+    assert_eq!((reference.1, reference.2), (wavefront.1, wavefront.2));
+    for (a, b) in reference.0.to_rgb().iter().zip(wavefront.0.to_rgb()) {
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() <= 1e-5 * a[c].abs().max(b[c].abs()) + 1e-6);
+        }
+    }
+    reference
 }
 
 /// Checks the furnace's per-channel mean against `E·Σ a^k (k < depth)`,
@@ -323,14 +337,17 @@ fn a_scene_without_emission_renders_exactly_black() {
     for m in &mut scene.materials {
         m.emission = Vec3::ZERO;
     }
-    let mut settings = RenderSettings::for_scene(&scene);
-    (settings.width, settings.height, settings.spp) = (24, 24, 4);
-    settings.threads = 2;
-    let (film, counters, _) = Renderer::new(&scene, &settings).unwrap().render();
-    assert_eq!(counters.paths, 24 * 24 * 4);
-    assert!(counters.rays >= counters.paths);
-    assert_eq!(film.invalid_samples, 0);
-    assert!(film.sums.iter().all(|s| *s == [0; 3]));
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        let mut settings = RenderSettings::for_scene(&scene);
+        (settings.width, settings.height, settings.spp) = (24, 24, 4);
+        settings.threads = 2;
+        settings.engine = engine;
+        let (film, counters, _) = Renderer::new(&scene, &settings).unwrap().render();
+        assert_eq!(counters.paths, 24 * 24 * 4);
+        assert!(counters.rays >= counters.paths);
+        assert_eq!(film.invalid_samples, 0);
+        assert!(film.sums.iter().all(|s| *s == [0; 3]), "{engine:?}");
+    }
     // The same furnace: a closed box with no emission is black too.
     let scene = furnace([1.0; 3], [0.0; 3]);
     let (film, _, _) = render(&scene, 3, 1);
@@ -343,11 +360,18 @@ fn the_lit_cornell_box_is_not_black() {
     // with the light on, the same render has light in every channel, and the
     // pixels looking at the light hold exactly 10 at depth 1.
     let scene = Scene::cornell();
-    let mut settings = RenderSettings::for_scene(&scene);
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        lit_cornell_box_at_depth_1(&scene, engine);
+    }
+}
+
+fn lit_cornell_box_at_depth_1(scene: &Scene, engine: Engine) {
+    let mut settings = RenderSettings::for_scene(scene);
     (settings.width, settings.height, settings.spp) = (24, 24, 4);
     settings.max_depth = 1;
     settings.threads = 2;
-    let (film, _, _) = Renderer::new(&scene, &settings).unwrap().render();
+    settings.engine = engine;
+    let (film, _, _) = Renderer::new(scene, &settings).unwrap().render();
     let rgb = film.to_rgb();
     // Every depth-1 pixel is a mix of exactly-10 and exactly-0 samples.
     for p in &rgb {
