@@ -478,13 +478,13 @@ fn json_vec3(v: &serde_json::Value) -> Vec3 {
 
 #[test]
 fn the_built_in_cornell_box_is_the_shared_json_exactly() {
+    // A copy of the project's shared/scenes/cornell-dh2323.json, kept in
+    // the repository so that a fresh clone can run this test.
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../shared/scenes/cornell-dh2323.json"
+        "/tests/data/cornell-dh2323.json"
     );
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
-        panic!("cannot read {path} (the project's shared/ folder beside the clone): {e}")
-    });
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();
     let scene = Scene::cornell();
 
