@@ -349,3 +349,32 @@ fn shipped_scenes_load() {
         assert!(!s.triangles.is_empty());
     }
 }
+
+#[test]
+fn a_transform_that_overflows_is_an_error_not_a_silent_drop() {
+    let d = dir("overflow");
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let e = load(
+        &d,
+        &[("m.obj", tri)],
+        &mesh(
+            "m.obj",
+            "material = \"white\"\nscale = 1e38\ntranslate = [3e38, 0.0, 0.0]",
+        ),
+    )
+    .unwrap_err();
+    assert!(e.file.ends_with("scene.toml"), "{e}");
+    assert_eq!(e.field.as_deref(), Some("mesh[0]"), "{e}");
+    assert!(e.message.contains("overflow"), "{e}");
+    // The entry's `file = ...` line in the scene file as written.
+    let text = std::fs::read_to_string(d.join("scene.toml")).unwrap();
+    let line = text.lines().position(|l| l.starts_with("file = ")).unwrap() + 1;
+    assert_eq!(e.line, line, "{e}");
+
+    let body = "[[generate]]\nkind = \"sphere\"\ntriangles = 80\nmaterial = \"white\"\n\
+                scale = 1e30\nradius = 1e30\n";
+    // (A sphere of radius 1e30 scaled by 1e30: vertices near 1e60.)
+    let e = load(&d, &[], body).unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("generate[0]"), "{e}");
+    assert!(e.message.contains("overflow"), "{e}");
+}

@@ -444,7 +444,8 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                     ));
                 }
             };
-            push_mesh_triangle(&mut triangles, &transform, mesh_ccw, *tri, mat);
+            push_mesh_triangle(&mut triangles, &transform, mesh_ccw, *tri, mat)
+                .map_err(|e| at(m.file.span(), &what, e))?;
         }
     }
     for (i, g) in raw.generated.iter().enumerate() {
@@ -542,7 +543,8 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             }
         };
         for tri in tris {
-            push_mesh_triangle(&mut triangles, &transform, true, tri, mat);
+            push_mesh_triangle(&mut triangles, &transform, true, tri, mat)
+                .map_err(|e| at(g.kind.span(), &what, e))?;
         }
     }
 
@@ -647,26 +649,34 @@ fn mesh_front_face(
     }
 }
 
-/// Transform a mesh triangle and add it, unless it has no area. A mirroring
-/// transform swaps the winding, so the front stays the same side of the
-/// surface.
+/// Transform a mesh triangle and add it, unless it has no area (skipped:
+/// it could never be hit). A mirroring transform swaps the winding, so the
+/// front stays the same side of the surface. A vertex the transform makes
+/// infinite or NaN is an error, which the caller places in the file.
 fn push_mesh_triangle(
     out: &mut Vec<Triangle>,
     transform: &glam::Affine3A,
     ccw: bool,
     v: [Vec3; 3],
     material: u32,
-) {
+) -> Result<(), String> {
     let p = v.map(|p| transform.transform_point3(p));
+    if let Some(q) = p.iter().find(|q| !q.is_finite()) {
+        return Err(format!(
+            "the transform (scale, rotate_deg, translate) turns a vertex into {q}: \
+             the coordinates overflow f32"
+        ));
+    }
     let mirrored = transform.matrix3.determinant() < 0.0;
     let t = if ccw != mirrored {
         Triangle::ccw(p, material)
     } else {
         Triangle::cw(p, material)
     };
-    if t.normal != Vec3::ZERO && p.iter().all(|q| q.is_finite()) {
+    if t.normal != Vec3::ZERO {
         out.push(t);
     }
+    Ok(())
 }
 
 /// 1-based line and column of byte `offset` in `text`.

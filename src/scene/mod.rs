@@ -33,6 +33,19 @@ impl Material {
     }
 }
 
+/// `normalize(a × b)`, or zero when `a` and `b` span no area. Edges so
+/// long that `a × b` overflows are scaled down first (only then, so every
+/// other triangle's normal keeps its bits).
+fn unit_normal(a: Vec3, b: Vec3) -> Vec3 {
+    let n = a.cross(b);
+    if n.is_finite() {
+        n.normalize_or_zero()
+    } else {
+        let scale = 1.0 / a.abs().max_element().max(b.abs().max_element());
+        (a * scale).cross(b * scale).normalize_or_zero()
+    }
+}
+
 /// A triangle with a material; its front side is the side `normal` points to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
@@ -48,7 +61,7 @@ impl Triangle {
     /// A triangle whose front is the counter-clockwise side:
     /// `normal = normalize((v1 - v0) × (v2 - v0))`.
     pub fn ccw(v: [Vec3; 3], material: u32) -> Self {
-        let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+        let normal = unit_normal(v[1] - v[0], v[2] - v[0]);
         Self {
             v,
             normal,
@@ -59,7 +72,7 @@ impl Triangle {
     /// A triangle whose front is the clockwise side:
     /// `normal = normalize((v2 - v0) × (v1 - v0))`, the DH2323 lab's rule.
     pub fn cw(v: [Vec3; 3], material: u32) -> Self {
-        let normal = (v[2] - v[0]).cross(v[1] - v[0]).normalize_or_zero();
+        let normal = unit_normal(v[2] - v[0], v[1] - v[0]);
         Self {
             v,
             normal,
