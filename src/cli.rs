@@ -540,7 +540,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     };
     if film.invalid_samples > 0 {
         eprintln!(
-            "warning: {} sample(s) were NaN, infinite or negative and were left out of the image",
+            "warning: {} sample(s) were NaN, infinite or negative: they add nothing to their pixels (counted as black)",
             film.invalid_samples
         );
     }

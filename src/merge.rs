@@ -81,6 +81,8 @@ impl MissingSamples {
                 ids.join(", "),
                 ids.join(",")
             );
+        } else {
+            s += ": render them (--samples A..B --partial FILE) and merge again";
         }
         s
     }
@@ -118,6 +120,7 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
     let mut merged: Option<(Film, AccMeta)> = None;
     let mut spp_from: Option<(u32, &Path)> = spp.map(|s| (s, Path::new("--spp")));
     let mut shard_count: Option<u32> = None;
+    let mut mixed_counts = false;
     // Every range merged so far and the file it came from.
     let mut origins: Vec<(Range<u32>, &Path)> = Vec::new();
     for path in paths {
@@ -148,8 +151,17 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
                 None => spp_from = Some((part_spp, path)),
             }
         }
+        // The count the parts were sharded by; parts of different counts
+        // give no advice on which shards to rerun (it would be wrong).
         if let Some((_, n)) = meta.shard {
-            shard_count.get_or_insert(n);
+            match shard_count {
+                None if !mixed_counts => shard_count = Some(n),
+                Some(m) if m != n => {
+                    shard_count = None;
+                    mixed_counts = true;
+                }
+                _ => {}
+            }
         }
         for r in &film.ranges {
             if let Some(&(ref other, from)) = origins

@@ -74,8 +74,8 @@ pub struct RenderStats {
     pub invalid_samples: u64,
     /// Seconds of each stage of this run ([`Stages`]).
     pub stages: Stages,
-    /// Seconds of each stage inside the engine's passes, summed over the
-    /// passes, by stage name. Empty for engines that do not time their
+    /// CPU-seconds of each stage inside the engine's passes (summed over
+    /// the threads and the passes), by stage name. Empty for engines that do not time their
     /// stages (the reference tracer).
     pub engine_stages: BTreeMap<&'static str, f64>,
     /// The checkpoint file, if any.

@@ -418,6 +418,23 @@ fn merge_refuses_missing_samples_naming_the_shards() {
 }
 
 #[test]
+fn merge_of_parts_of_different_shard_counts_gives_no_wrong_advice() {
+    // Shard 0/2 (samples 0..8) and shard 3/4 (12..16): 8..12 is missing,
+    // which is no one shard of either count.
+    let dir = scratch("mixed");
+    let half = dir.join("half");
+    std::fs::create_dir_all(&half).unwrap();
+    let parts = [shard(&half, 0, 2, &[]), shard(&dir, 3, 4, &[])];
+    let out = dir.join("out.png");
+    let o = merge(&parts, &["--out", p(&out)]);
+    assert!(!o.status.success());
+    let e = String::from_utf8(o.stderr).unwrap();
+    assert!(e.contains("missing samples 8..12 of 0..16"), "{e}");
+    assert!(!e.contains("--array"), "advice from one part's count: {e}");
+    assert!(!out.exists());
+}
+
+#[test]
 fn allow_partial_writes_and_says_what_is_missing() {
     let dir = scratch("allow");
     let parts: Vec<PathBuf> = [0, 1, 3].iter().map(|&i| shard(&dir, i, 4, &[])).collect();
