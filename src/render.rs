@@ -2,13 +2,14 @@
 
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
-use crate::film::{Film, accumulate};
+use crate::film::{Film, PixelSum, accumulate};
 use crate::reference::ReferenceTracer;
 use crate::scene::Scene;
 use crate::wavefront::{Scratch, WavefrontEngine};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Which path tracer computes the samples.
@@ -316,17 +317,72 @@ impl Renderer {
 
     /// Add samples `range` of every pixel to `film`.
     pub fn render_samples(&self, range: Range<u32>, film: &mut Film) -> Counters {
+        self.check_film(film);
+        let (counters, complete) = self.render_sums(range.clone(), &mut film.sums, &|| false);
+        assert!(complete, "nothing asked to stop");
+        film.add_range(range);
+        film.invalid_samples += counters.invalid_samples;
+        counters
+    }
+
+    /// [`render_samples`](Self::render_samples) that gives up, between
+    /// tiles, once `stop()` returns true: then it returns `None` and `film`
+    /// is exactly as it was (the samples go to a separate accumulator,
+    /// added to the film only when every tile is done). A film therefore
+    /// only ever holds whole sample ranges.
+    pub fn render_samples_or_stop(
+        &self,
+        range: Range<u32>,
+        film: &mut Film,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Counters> {
+        self.check_film(film);
+        let mut pass = vec![[0u128; 3]; film.sums.len()];
+        let (counters, complete) = self.render_sums(range.clone(), &mut pass, stop);
+        if !complete {
+            return None;
+        }
+        for (sum, p) in film.sums.iter_mut().zip(&pass) {
+            for (s, p) in sum.iter_mut().zip(p) {
+                *s += p;
+            }
+        }
+        film.add_range(range);
+        film.invalid_samples += counters.invalid_samples;
+        Some(counters)
+    }
+
+    fn check_film(&self, film: &Film) {
         assert_eq!(
             (film.width, film.height),
             (self.settings.width, self.settings.height)
         );
+    }
+
+    /// Add samples `range` of every pixel to `sums`, a tile (or row) at a
+    /// time; tiles not yet started when `stop()` turns true are skipped.
+    /// Returns the work counted and whether every tile was rendered.
+    fn render_sums(
+        &self,
+        range: Range<u32>,
+        sums: &mut [PixelSum],
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> (Counters, bool) {
         let s = &self.settings;
         let camera = self.scene.camera.for_resolution(s.width, s.height);
+        let skipped = AtomicBool::new(false);
+        let go = || {
+            let stopping = stop();
+            if stopping {
+                skipped.store(true, Ordering::Relaxed);
+            }
+            !stopping
+        };
         let counters = self.pool.install(|| match &self.engine {
-            EngineState::Reference(tracer) => film
-                .sums
+            EngineState::Reference(tracer) => sums
                 .par_chunks_mut(s.width as usize)
                 .enumerate()
+                .filter(|_| go())
                 .map(|(y, row)| {
                     let mut c = Counters::default();
                     for (x, sum) in row.iter_mut().enumerate() {
@@ -349,9 +405,9 @@ impl Renderer {
                 .reduce(Counters::default, sum_counters),
             EngineState::Wavefront(engine) => {
                 let tile = tile_pixels(s, range.len());
-                film.sums
-                    .par_chunks_mut(tile)
+                sums.par_chunks_mut(tile)
                     .enumerate()
+                    .filter(|_| go())
                     .map(|(i, sums)| {
                         // Each worker thread reuses its own queues.
                         let worker = rayon::current_thread_index().unwrap_or(0);
@@ -372,9 +428,7 @@ impl Renderer {
                     .reduce(Counters::default, sum_counters)
             }
         });
-        film.add_range(range);
-        film.invalid_samples += counters.invalid_samples;
-        counters
+        (counters, !skipped.load(Ordering::Relaxed))
     }
 
     /// Render samples `0..spp` into a new film, timing it.

@@ -34,6 +34,14 @@ use std::time::{Duration, Instant};
 /// The default length of one pass.
 pub const DEFAULT_PASS_TARGET: Duration = Duration::from_millis(500);
 
+/// A pass expected to run longer than this many seconds can be stopped by
+/// a signal part-way through (see [`Renderer::render_samples_or_stop`]).
+pub const LONG_PASS_SECONDS: f64 = 1.0;
+
+/// A first pass over more pixels than this can be stopped part-way (its
+/// speed is not known yet; one sample of each pixel may take long).
+pub const LONG_PASS_PIXELS: usize = 1 << 22;
+
 /// The default interval between checkpoints.
 pub const DEFAULT_CHECKPOINT_EVERY: Duration = Duration::from_secs(60);
 
@@ -276,12 +284,14 @@ impl<'a> Session<'a> {
         let mut per_sample: Option<f64> = None;
 
         report.stop = loop {
-            if let Some(sig) = interrupt.requested() {
-                break Stop::Signal(sig);
-            }
+            // Done is done: a signal that arrives as the last pass ends
+            // does not stop a render that has every sample.
             let Some(gap) = first_gap(&film.ranges, &target) else {
                 break Stop::Complete;
             };
+            if let Some(sig) = interrupt.requested() {
+                break Stop::Signal(sig);
+            }
             let now = start.elapsed();
             let plan = PassPlan {
                 now: now.as_secs_f64(),
@@ -296,9 +306,31 @@ impl<'a> Session<'a> {
             };
 
             let pass_start = Instant::now();
-            let c = self
-                .renderer
-                .render_samples(gap.start..gap.start + n, &mut film);
+            let samples = gap.start..gap.start + n;
+            // A pass expected to take long (one at the 1-sample floor of a
+            // huge image, or a first pass over more than LONG_PASS_PIXELS
+            // before its speed is known) can be stopped by a signal between
+            // tiles; the film then keeps only the passes that finished.
+            // Other passes (the usual ~0.5 s) run in place, without the
+            // film-sized accumulator that stopping part-way needs.
+            let long = match per_sample {
+                Some(p) => p * n as f64 > LONG_PASS_SECONDS,
+                None => film.sums.len() > LONG_PASS_PIXELS,
+            };
+            let c = if long {
+                let stop = || interrupt.requested().is_some();
+                match self
+                    .renderer
+                    .render_samples_or_stop(samples, &mut film, &stop)
+                {
+                    Some(c) => c,
+                    None => {
+                        break Stop::Signal(interrupt.requested().expect("stopped by a signal"));
+                    }
+                }
+            } else {
+                self.renderer.render_samples(samples, &mut film)
+            };
             let dt = pass_start.elapsed().as_secs_f64();
             report.counters += c;
             report.passes += 1;

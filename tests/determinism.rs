@@ -207,3 +207,32 @@ fn an_accumulation_file_round_trip_continues_the_render_exactly() {
         .collect();
     assert_eq!(names, ["part.acc"]);
 }
+
+#[test]
+fn a_pass_stopped_part_way_leaves_the_film_as_it_was() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        let mut s = settings(9, 2);
+        s.engine = engine;
+        let renderer = Renderer::new(&Scene::cornell(), &s).unwrap();
+        let mut film = renderer.new_film();
+        renderer.render_samples(0..3, &mut film);
+        let before = film.clone();
+        // Stop after a few tiles (rows, for the reference) have started.
+        let calls = AtomicUsize::new(0);
+        let stop = || calls.fetch_add(1, Ordering::SeqCst) >= 3;
+        assert!(
+            renderer
+                .render_samples_or_stop(3..8, &mut film, &stop)
+                .is_none()
+        );
+        assert!(calls.load(Ordering::SeqCst) > 3, "{engine:?}: never asked");
+        assert_eq!(film, before, "{engine:?}: a stopped pass changed the film");
+        // Not stopped: the same as rendering in place.
+        let c = renderer.render_samples_or_stop(3..8, &mut film, &|| false);
+        let mut direct = before.clone();
+        let d = renderer.render_samples(3..8, &mut direct);
+        assert_eq!((c.unwrap().paths, c.unwrap().rays), (d.paths, d.rays));
+        assert_eq!(film, direct, "{engine:?}");
+    }
+}
