@@ -105,11 +105,6 @@ impl WavefrontEngine {
         }
     }
 
-    /// The prepared scene.
-    pub fn world(&self) -> &World {
-        &self.world
-    }
-
     /// Trace samples `samples` of the pixels `tile` (row-major indices,
     /// whose sums are `sums`), at most `batch_size` paths at a time.
     #[allow(clippy::too_many_arguments)]

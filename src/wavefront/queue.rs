@@ -128,16 +128,6 @@ impl PathQueue {
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
     }
-
-    /// The radiance gathered by path `i`.
-    #[inline]
-    pub fn radiance_of(&self, i: usize) -> glam::Vec3 {
-        glam::Vec3::new(
-            self.radiance[0][i],
-            self.radiance[1][i],
-            self.radiance[2][i],
-        )
-    }
 }
 
 /// Rows `i..i + 8` of a column (in bounds: columns are multiples of 8).
