@@ -41,11 +41,11 @@ use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
-use wavetrace::bvh::Bvh;
-use wavetrace::geometry::{
+use wavetrace::accel::bvh::Bvh;
+use wavetrace::accel::triangle::{
     Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
 };
-use wavetrace::mesh::{cornell_box, geodesic_sphere};
+use wavetrace::scene::mesh::{cornell_box, geodesic_sphere};
 
 const RAYS: usize = 1 << 16;
 const EPS: f32 = 1e-4;

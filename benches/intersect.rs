@@ -4,8 +4,10 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
 use std::hint::black_box;
-use wavetrace::geometry::{Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs};
-use wavetrace::sampling::PathRng;
+use wavetrace::accel::triangle::{
+    Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
+};
+use wavetrace::integrator::sampler::PathRng;
 use wavetrace::scene::Scene;
 
 /// Rays from random points inside the box in random directions.

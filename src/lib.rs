@@ -23,24 +23,16 @@
 
 #![warn(missing_docs)]
 
-pub mod bvh;
-pub mod camera;
+pub mod accel;
 pub mod cli;
 pub mod error;
 pub mod film;
-pub mod geometry;
-pub mod merge;
-pub mod mesh;
+pub mod fs;
+pub mod integrator;
+pub mod math;
 pub mod output;
-pub mod profile;
-pub mod real;
-pub mod reference;
 pub mod render;
-pub mod sampling;
+pub mod run;
 pub mod scene;
-pub mod session;
-pub mod shard;
-pub mod stats;
-pub mod wavefront;
 
 pub use error::{Error, Result};

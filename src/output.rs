@@ -1,8 +1,15 @@
-//! Images out — PNG, OpenEXR, PFM — written whole or not at all.
+//! Outputs: images (PNG, OpenEXR, PFM) and accumulation files, written
+//! whole or not at all, and the checks on output paths made before any
+//! work starts.
 
-use crate::error::Error;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use crate::error::{Error, Result};
+use crate::film::{AccMeta, Film};
+use crate::fs::write_atomic;
+use std::io::Write;
+use std::path::Path;
+
+/// The extension of accumulation (partial) files.
+pub const PARTIAL_EXTENSION: &str = "wtacc";
 
 /// Image file formats, chosen by the extension of the output path.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -17,7 +24,7 @@ pub enum ImageFormat {
 
 impl ImageFormat {
     /// The format for `path`'s extension (case-insensitive).
-    pub fn from_path(path: &Path) -> Result<Self, Error> {
+    pub fn from_path(path: &Path) -> Result<Self> {
         let ext = path
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
@@ -33,71 +40,6 @@ impl ImageFormat {
     }
 }
 
-/// The temporary path beside `path` that [`write_atomic`] writes first.
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or("out".into(), |n| n.to_string_lossy());
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
-}
-
-/// Write a file atomically: everything goes to a temporary file beside it,
-/// which is flushed to disk and then renamed over `path` (and the rename is
-/// flushed too, where the system allows). On any error the
-/// temporary file is removed and `path` is left as it was.
-pub fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), Error> {
-    let tmp = temp_path(path);
-    let result = (|| {
-        let mut w = BufWriter::new(std::fs::File::create(&tmp)?);
-        write(&mut w)?;
-        let f = w.into_inner().map_err(|e| e.into_error())?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        sync_parent(path);
-        Ok(())
-    })();
-    result.map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::Io {
-            path: path.to_path_buf(),
-            source,
-        }
-    })
-}
-
-/// Flush `path`'s directory entry to disk, so a rename survives a power cut
-/// or reboot (on Unix; best effort: some file systems refuse to sync a
-/// directory, and the rename has happened either way).
-fn sync_parent(path: &Path) {
-    #[cfg(unix)]
-    {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        if let Ok(d) = std::fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
-    #[cfg(not(unix))]
-    let _ = path;
-}
-
-/// Check, before any work starts, that `path` can be written: its directory
-/// exists and a file can be created there.
-pub fn check_writable(path: &Path) -> Result<(), Error> {
-    let tmp = temp_path(path);
-    std::fs::File::create(&tmp)
-        .and_then(|_| std::fs::remove_file(&tmp))
-        .map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })
-}
-
 /// The sRGB transfer function (linear → encoded), for values in [0, 1].
 pub fn srgb_encode(x: f32) -> f32 {
     if x <= 0.003_130_8 {
@@ -109,9 +51,10 @@ pub fn srgb_encode(x: f32) -> f32 {
 
 /// Write a linear RGB image (row-major, row 0 at the top) in the format that
 /// `path`'s extension names, atomically.
-pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<(), Error> {
+pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     assert_eq!(rgb.len(), width as usize * height as usize);
-    match ImageFormat::from_path(path)? {
+    let format = ImageFormat::from_path(path)?;
+    let written = match format {
         ImageFormat::Png => {
             let bytes: Vec<u8> = rgb
                 .iter()
@@ -144,8 +87,15 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
         ImageFormat::Exr => {
             use exr::prelude::*;
             let (w_, h_) = (width as usize, height as usize);
-            let image = Image::from_channels(
+            // Blocks in increasing order: compressed in parallel, but
+            // written in one order, so the same image gives the same bytes.
+            let encoding = Encoding {
+                line_order: LineOrder::Increasing,
+                ..Encoding::FAST_LOSSLESS
+            };
+            let image = Image::from_encoded_channels(
                 (w_, h_),
+                encoding,
                 SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
                     let p = rgb[y * w_ + x];
                     (p[0], p[1], p[2])
@@ -160,5 +110,75 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
                 w.write_all(buf.get_ref())
             })
         }
+    };
+    Ok(written?)
+}
+
+/// Whether `path` names a partial (accumulation) file: a `.wtacc` extension.
+pub fn is_partial_path(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case(PARTIAL_EXTENSION))
+}
+
+/// Check that `path` is an output wavetrace can write: an image format or
+/// a partial file.
+pub fn check_output_format(path: &Path) -> Result<()> {
+    if is_partial_path(path) {
+        return Ok(());
+    }
+    ImageFormat::from_path(path).map(|_| ()).map_err(|_| {
+        Error::Settings(format!(
+            "{}: unknown image format; use a .png, .exr or .pfm extension, or .{PARTIAL_EXTENSION} for a partial file",
+            path.display()
+        ))
+    })
+}
+
+/// Check that `path` can be a partial file: a `.wtacc` extension.
+pub fn check_partial_path(path: &Path) -> Result<()> {
+    if is_partial_path(path) {
+        Ok(())
+    } else {
+        Err(Error::Settings(format!(
+            "{}: a partial file's name must end in .{PARTIAL_EXTENSION}",
+            path.display()
+        )))
+    }
+}
+
+/// Write `film` to `path`, atomically: a partial file for `.wtacc`, else an
+/// image in the format of the extension.
+pub fn write_output(path: &Path, film: &Film, meta: &AccMeta) -> Result<()> {
+    if is_partial_path(path) {
+        Ok(film.save_with_meta(path, meta)?)
+    } else {
+        write_image(path, film.width, film.height, &film.to_rgb())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_same_image_gives_the_same_bytes_in_every_format() {
+        // Big enough for many EXR blocks compressed in parallel, which once
+        // landed in the file in whatever order they finished.
+        let (w, h) = (300u32, 200u32);
+        let rgb: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| [(i % 97) as f32 / 97.0, (i % 13) as f32, (i as f32).sqrt()])
+            .collect();
+        let dir = std::env::temp_dir().join(format!("wavetrace-output-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for ext in ["png", "exr", "pfm"] {
+            let path = dir.join(format!("a.{ext}"));
+            write_image(&path, w, h, &rgb).unwrap();
+            let first = std::fs::read(&path).unwrap();
+            for _ in 0..8 {
+                write_image(&path, w, h, &rgb).unwrap();
+                assert!(std::fs::read(&path).unwrap() == first, "{ext} bytes differ");
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

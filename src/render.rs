@@ -1,11 +1,11 @@
 //! Render settings and the driver that runs an engine over sample ranges.
 
-use crate::bvh::Bvh;
+use crate::accel::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum, accumulate};
-use crate::reference::ReferenceTracer;
+use crate::integrator::reference::ReferenceTracer;
+use crate::integrator::wavefront::{Scratch, WavefrontEngine};
 use crate::scene::Scene;
-use crate::wavefront::{Scratch, WavefrontEngine};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::Arc;
@@ -151,9 +151,9 @@ pub const ESTIMATOR_VERSION: u32 = 1;
 /// fixed-point scale. A change to any of them changes every image's bits,
 /// and so changes this fingerprint and [`RenderSettings::image_hash`].
 pub fn estimator_fingerprint() -> u64 {
-    use crate::geometry::{TriangleEdges, V3Tri, moller_trumbore};
-    use crate::real::{V3, sin_cos_2pi};
-    use crate::sampling::{PathRng, uniform_hemisphere};
+    use crate::accel::triangle::{TriangleEdges, V3Tri, moller_trumbore};
+    use crate::integrator::sampler::{PathRng, uniform_hemisphere};
+    use crate::math::{V3, sin_cos_2pi};
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     let mut put = |x: f32| h.update(&x.to_bits().to_le_bytes());
     let mut rng = PathRng::new(0x5EED, 7, 11);
@@ -273,7 +273,7 @@ impl Renderer {
                 Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
             })?;
         // One hierarchy, built on the render's threads, shared by the engine.
-        let bvh = Arc::new(pool.install(|| Bvh::build(&scene.triangle_edges())));
+        let bvh = Arc::new(pool.install(|| Bvh::build(&crate::accel::scene_triangles(scene))));
         let engine = match settings.engine {
             Engine::Reference => EngineState::Reference(ReferenceTracer::with_bvh(
                 scene,

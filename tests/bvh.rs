@@ -4,9 +4,9 @@
 use glam::Vec3;
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
-use wavetrace::bvh::Bvh;
-use wavetrace::geometry::{Hit, TriangleEdges, closest_hit_brute_force};
-use wavetrace::mesh::{cornell_box, geodesic_sphere, terrain};
+use wavetrace::accel::bvh::Bvh;
+use wavetrace::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force};
+use wavetrace::scene::mesh::{cornell_box, geodesic_sphere, terrain};
 
 fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
     tris.iter()

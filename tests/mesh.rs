@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use std::path::{Path, PathBuf};
-use wavetrace::reference::ReferenceTracer;
+use wavetrace::integrator::reference::ReferenceTracer;
 use wavetrace::scene::{Scene, SceneError};
 
 /// A fresh directory for one test's files.
@@ -153,8 +153,8 @@ fn generated_meshes() {
     let s = load(&d, &[], body).unwrap();
     assert_eq!(
         s.triangles.len(),
-        wavetrace::mesh::sphere_triangle_count(5000)
-            + wavetrace::mesh::terrain_triangle_count(2000)
+        wavetrace::scene::mesh::sphere_triangle_count(5000)
+            + wavetrace::scene::mesh::terrain_triangle_count(2000)
     );
 }
 

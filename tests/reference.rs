@@ -14,9 +14,9 @@
 
 use glam::Vec3;
 use wavetrace::film::{FIXED_POINT_SCALE, Film};
-use wavetrace::reference::ReferenceTracer;
+use wavetrace::integrator::reference::ReferenceTracer;
+use wavetrace::integrator::sampler::PathRng;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
-use wavetrace::sampling::PathRng;
 use wavetrace::scene::{Scene, file};
 
 /// The Cornell light's radiance (shared/scenes/cornell-dh2323.json).

@@ -2,13 +2,13 @@
 //! against the scalar one, and the image against the schedule.
 
 use glam::Vec3;
-use wavetrace::film::Film;
-use wavetrace::geometry::{
+use wavetrace::accel::triangle::{
     Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
 };
-use wavetrace::real::V3;
+use wavetrace::film::Film;
+use wavetrace::integrator::sampler::PathRng;
+use wavetrace::math::V3;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
-use wavetrace::sampling::PathRng;
 use wavetrace::scene::Scene;
 use wide::f32x8;
 

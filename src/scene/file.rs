@@ -4,7 +4,7 @@
 //! keys are refused, not ignored: a typo never silently changes a render.
 
 use super::{Material, Scene, Triangle};
-use crate::camera::Camera;
+use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -508,7 +508,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 )?;
                 unused(g.seed.is_some(), g.seed.as_ref().map(|s| s.span()), "seed")?;
                 let radius = positive(&g.radius, "radius", 1.0, false)?;
-                crate::mesh::geodesic_sphere(center, radius, n as usize)
+                crate::scene::mesh::geodesic_sphere(center, radius, n as usize)
             }
             "terrain" => {
                 unused(
@@ -532,7 +532,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 };
                 let height = positive(&g.height, "height", 0.1, true)?;
                 let seed = g.seed.as_ref().map_or(0, |s| *s.get_ref());
-                crate::mesh::terrain(center, size, height, n as usize, seed)
+                crate::scene::mesh::terrain(center, size, height, n as usize, seed)
             }
             other => {
                 return Err(at(

@@ -3,10 +3,12 @@
 //! Scenes are read from TOML files ([`file`](mod@file)); the DH2323 Cornell box is
 //! built in ([`Scene::cornell`]) and is the default scene.
 
+pub mod camera;
 pub mod file;
+pub mod mesh;
 pub mod obj;
 
-use crate::camera::Camera;
+use crate::scene::camera::Camera;
 use glam::Vec3;
 
 pub use file::SceneError;
@@ -113,14 +115,6 @@ impl Scene {
             message: format!("cannot read the scene file: {e}"),
         })?;
         file::parse(&text, &path.display().to_string())
-    }
-
-    /// The triangles as the intersection kernels want them, in index order.
-    pub fn triangle_edges(&self) -> Vec<crate::geometry::TriangleEdges> {
-        self.triangles
-            .iter()
-            .map(crate::geometry::TriangleEdges::from)
-            .collect()
     }
 
     /// The largest absolute coordinate of any vertex (at least 1).

@@ -22,21 +22,21 @@
 //! # Exactness
 //!
 //! The closest hit is the lexicographic minimum of `(t, triangle index)`
-//! ([`crate::geometry`]): a leaf's lanes keep their own minimum and the answer
+//! ([`crate::accel::triangle`]): a leaf's lanes keep their own minimum and the answer
 //! is reduced at the end, so the order in which leaves are visited does not
 //! matter. A child is skipped only when its box starts strictly beyond the
 //! best `t` so far (ties are visited, the lower index may be there). Boxes are
 //! padded by a small absolute margin (`2^-15` of the scene's largest
 //! coordinate) so that rounding in the box test or in Möller–Trumbore cannot
 //! cull a triangle that the kernel would report. The result is the same
-//! triangle and the same `t` bits as [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force).
+//! triangle and the same `t` bits as [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force).
 //! (A ray that grazes a triangle almost in its plane gets a `t` whose rounding
 //! error grows as 1/sin of the angle; were that error ever larger than the
 //! padding, the two could differ. The tests fire millions of random rays,
 //! grazing ones included, without finding one.)
 
-use crate::geometry::{Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_packs};
-use crate::real::{V3, Vec3x8};
+use crate::accel::triangle::{Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_packs};
+use crate::math::{V3, Vec3x8};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -638,7 +638,7 @@ impl Bvh {
 
     /// The closest hit of the ray `o + t·d` with `t_min < t < t_max`: the
     /// smallest `(t, triangle index)`, bit for bit what
-    /// [`closest_hit_brute_force`](crate::geometry::closest_hit_brute_force)
+    /// [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)
     /// returns.
     #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {

@@ -2,9 +2,9 @@
 
 use super::World;
 use super::queue::{MISS, PathQueue};
-use crate::bvh::Bvh;
-use crate::geometry::{Hit, LaneHits, Triangle8};
-use crate::real::V3;
+use crate::accel::bvh::Bvh;
+use crate::accel::triangle::{Hit, LaneHits, Triangle8};
+use crate::math::V3;
 use glam::Vec3;
 use wide::f32x8;
 

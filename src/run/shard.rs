@@ -4,7 +4,7 @@
 //! disjoint sample ranges that cover `0..spp` (the film is exact, see
 //! [`crate::film`]). A farm splits `0..spp` into `N` near-equal shards;
 //! each task renders one ([`shard_range`]) into a *partial file* (an
-//! accumulation file, `.wtacc`), and `wavetrace merge` ([`crate::merge`])
+//! accumulation file, `.wtacc`), and `wavetrace merge` ([`crate::run::merge`])
 //! adds the partial files up into the image a single run would give, byte
 //! for byte.
 //!
@@ -22,15 +22,7 @@
 //! `SLURM_CPUS_PER_TASK` sets the thread count when `--threads` is not
 //! given ([`threads_from_env`]).
 
-use crate::error::{Error, Result};
-use crate::film::{AccMeta, Film};
-use crate::output::{ImageFormat, write_image};
-use clap::Args;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
-
-/// The extension of accumulation (partial) files.
-pub const PARTIAL_EXTENSION: &str = "wtacc";
 
 /// A look-up of an environment variable (`std::env::var(..).ok()` in the
 /// command; a map in tests).
@@ -108,12 +100,6 @@ pub enum ShardError {
         /// What the environment says.
         detail: String,
     },
-}
-
-impl From<ShardError> for Error {
-    fn from(e: ShardError) -> Self {
-        Error::Settings(e.to_string())
-    }
 }
 
 /// What `--shard` names: a fixed shard, or one taken from the environment.
@@ -248,36 +234,20 @@ pub fn threads_from_env(env: EnvLookup) -> Result<Option<usize>, ShardError> {
     }
 }
 
-/// The farm options of `wavetrace render`.
-#[derive(Clone, Debug, Default, Args)]
-pub struct ShardArgs {
-    /// Render only sample indices A..B (A included, B not) of every pixel,
-    /// out of 0..spp.
-    #[arg(long, value_name = "A..B", value_parser = parse_samples, conflicts_with = "shard")]
+/// What a render is asked to cover of its samples `0..spp`: a sample
+/// range (`--samples A..B`), a shard (`--shard I/N` or `auto`, with
+/// `--shard-count`), or, when neither is given, all of them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SampleRequest {
+    /// Sample indices `A..B`.
     pub samples: Option<Range<u32>>,
-    /// Render shard I of N (I from 0): the I-th of N near-equal sample
-    /// ranges of 0..spp. `auto` takes I and N from a Slurm job array
-    /// (SLURM_ARRAY_TASK_ID ...) or a Kubernetes Indexed Job
-    /// (JOB_COMPLETION_INDEX, with --shard-count).
-    #[arg(long, value_name = "I/N|auto", value_parser = ShardSpec::parse)]
+    /// A shard.
     pub shard: Option<ShardSpec>,
-    /// The number of shards, with --shard auto: then a Slurm task ID or a
-    /// JOB_COMPLETION_INDEX is the shard index itself.
-    #[arg(long, value_name = "N")]
+    /// The shard count, with [`ShardSpec::Auto`].
     pub shard_count: Option<u32>,
-    /// Write the render's partial file (.wtacc: per-pixel sums, the sample
-    /// range held, a hash of the scene and settings) for `wavetrace merge`.
-    /// With --partial and no --out, no image is written.
-    #[arg(long, value_name = "FILE.wtacc")]
-    pub partial: Option<PathBuf>,
-    /// Check the scene, the settings, the shard and the outputs, say what
-    /// would be rendered, and exit without rendering (e.g. before
-    /// submitting a farm job).
-    #[arg(long)]
-    pub check: bool,
 }
 
-/// The samples a render covers, resolved from [`ShardArgs`].
+/// The samples a render covers, resolved from a [`SampleRequest`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SampleWork {
     /// The sample indices to render, within `0..spp`.
@@ -286,7 +256,7 @@ pub struct SampleWork {
     pub shard: Option<(u32, u32)>,
 }
 
-impl ShardArgs {
+impl SampleRequest {
     /// The sample range to render for a render of `spp` samples per pixel,
     /// all checked: `0..spp` when no range or shard is asked for.
     pub fn resolve(&self, spp: u32, env: EnvLookup) -> Result<SampleWork, ShardError> {
@@ -311,48 +281,6 @@ impl ShardArgs {
             (None, None) => 0..spp,
         };
         Ok(SampleWork { range, shard })
-    }
-}
-
-/// Whether `path` names a partial (accumulation) file: a `.wtacc` extension.
-pub fn is_partial_path(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case(PARTIAL_EXTENSION))
-}
-
-/// Check that `path` is an output wavetrace can write: an image format or
-/// a partial file.
-pub fn check_output_format(path: &Path) -> Result<()> {
-    if is_partial_path(path) {
-        return Ok(());
-    }
-    ImageFormat::from_path(path).map(|_| ()).map_err(|_| {
-        Error::Settings(format!(
-            "{}: unknown image format; use a .png, .exr or .pfm extension, or .{PARTIAL_EXTENSION} for a partial file",
-            path.display()
-        ))
-    })
-}
-
-/// Check that `path` can be a partial file: a `.wtacc` extension.
-pub fn check_partial_path(path: &Path) -> Result<()> {
-    if is_partial_path(path) {
-        Ok(())
-    } else {
-        Err(Error::Settings(format!(
-            "{}: a partial file's name must end in .{PARTIAL_EXTENSION}",
-            path.display()
-        )))
-    }
-}
-
-/// Write `film` to `path`, atomically: a partial file for `.wtacc`, else an
-/// image in the format of the extension.
-pub fn write_output(path: &Path, film: &Film, meta: &AccMeta) -> Result<()> {
-    if is_partial_path(path) {
-        film.save_with_meta(path, meta)
-    } else {
-        write_image(path, film.width, film.height, &film.to_rgb())
     }
 }
 
@@ -469,12 +397,10 @@ mod tests {
     #[test]
     fn resolve_checks_against_spp() {
         let none = env_of(&[]);
-        let args = |samples, shard, shard_count| ShardArgs {
+        let args = |samples, shard, shard_count| SampleRequest {
             samples,
             shard,
             shard_count,
-            partial: None,
-            check: false,
         };
         assert_eq!(
             args(None, None, None).resolve(64, &none).unwrap().range,

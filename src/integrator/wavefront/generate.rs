@@ -1,8 +1,8 @@
 //! Stage 1, *generate*: camera rays for a batch of (pixel, sample) pairs.
 
 use super::queue::PathQueue;
-use crate::camera::RasterCamera;
-use crate::sampling::PathRng;
+use crate::integrator::sampler::PathRng;
+use crate::scene::camera::RasterCamera;
 
 /// Fill `queue` with the camera ray of every (pixel, sample) pair of the
 /// batch: pixels `pixels` (row-major indices) times samples `samples`,

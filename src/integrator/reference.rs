@@ -17,12 +17,12 @@
 //! Closest hits come from the [`Bvh`] by default; [`ReferenceTracer::with_brute_force`]
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
-use crate::bvh::Bvh;
-use crate::camera::RasterCamera;
-use crate::geometry::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
-use crate::real::V3;
-use crate::sampling::{PathRng, uniform_hemisphere};
+use crate::accel::bvh::Bvh;
+use crate::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
+use crate::integrator::sampler::{PathRng, uniform_hemisphere};
+use crate::math::V3;
 use crate::scene::Scene;
+use crate::scene::camera::RasterCamera;
 use glam::Vec3;
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -50,11 +50,11 @@ impl ReferenceTracer {
         Self::with_bvh(
             scene,
             max_depth,
-            Arc::new(Bvh::build(&scene.triangle_edges())),
+            Arc::new(Bvh::build(&crate::accel::scene_triangles(scene))),
         )
     }
 
-    /// A tracer over a [`Bvh`] already built from `scene.triangle_edges()`
+    /// A tracer over a [`Bvh`] already built from `crate::accel::scene_triangles(scene)`
     /// (so engines can share one).
     pub fn with_bvh(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
         Self::with_accel(scene, max_depth, Accel::Bvh(bvh))
@@ -63,7 +63,11 @@ impl ReferenceTracer {
     /// A tracer that tests every triangle for every ray: slow, and the
     /// plainest possible oracle. Gives the same images as [`ReferenceTracer::new`].
     pub fn with_brute_force(scene: &Scene, max_depth: u32) -> Self {
-        Self::with_accel(scene, max_depth, Accel::BruteForce(scene.triangle_edges()))
+        Self::with_accel(
+            scene,
+            max_depth,
+            Accel::BruteForce(crate::accel::scene_triangles(scene)),
+        )
     }
 
     fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {

@@ -6,7 +6,7 @@
 //! tested in, so every intersector — scalar brute force, 8-wide packs, a
 //! hierarchy — returns the same triangle and the same `t`, bit for bit.
 
-use crate::real::{Real, V3, Vec3x8};
+use crate::math::{Real, V3, Vec3x8};
 use crate::scene::Triangle;
 use glam::Vec3;
 use wide::{f32x4, f32x8, i32x8};

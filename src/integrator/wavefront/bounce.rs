@@ -4,9 +4,9 @@
 
 use super::World;
 use super::queue::{MISS, PathQueue, load8, store8};
-use crate::geometry::hit_point;
-use crate::real::{V3, Vec3x8};
-use crate::sampling::uniform_hemisphere;
+use crate::accel::triangle::hit_point;
+use crate::integrator::sampler::uniform_hemisphere;
+use crate::math::{V3, Vec3x8};
 use std::f32::consts::PI;
 use std::ops::Range;
 use wide::f32x8;

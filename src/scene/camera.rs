@@ -1,6 +1,6 @@
 //! The pinhole camera: where each camera ray starts and which way it goes.
 
-use crate::sampling::PathRng;
+use crate::integrator::sampler::PathRng;
 use glam::Vec3;
 
 /// A pinhole camera with an orthonormal frame.

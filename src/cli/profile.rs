@@ -5,6 +5,7 @@
 //! are built into the binary; `--profile` also takes a path to a file.
 
 use crate::error::{Error, Result};
+use crate::fs::FileError;
 use serde::Deserialize;
 use std::path::Path;
 
@@ -30,11 +31,11 @@ pub struct Profile {
 
 /// The built-in profiles: name and TOML text.
 pub const BUILT_IN: &[(&str, &str)] = &[
-    ("preview", include_str!("../profiles/preview.toml")),
-    ("default", include_str!("../profiles/default.toml")),
+    ("preview", include_str!("../../profiles/preview.toml")),
+    ("default", include_str!("../../profiles/default.toml")),
     (
         "seed-figure8",
-        include_str!("../profiles/seed-figure8.toml"),
+        include_str!("../../profiles/seed-figure8.toml"),
     ),
 ];
 
@@ -52,10 +53,8 @@ impl Profile {
             return Self::parse(text, name);
         }
         if name.contains('/') || name.ends_with(".toml") {
-            let text = std::fs::read_to_string(Path::new(name)).map_err(|source| Error::Io {
-                path: name.into(),
-                source,
-            })?;
+            let text = std::fs::read_to_string(Path::new(name))
+                .map_err(|source| FileError::new(Path::new(name), source))?;
             return Self::parse(&text, name);
         }
         let known: Vec<&str> = BUILT_IN.iter().map(|(n, _)| *n).collect();

@@ -21,11 +21,11 @@ pub mod intersect;
 pub mod queue;
 pub mod shade;
 
-use crate::bvh::Bvh;
-use crate::camera::RasterCamera;
+use crate::accel::bvh::Bvh;
 use crate::film::PixelSum;
 use crate::render::{Counters, StageSeconds};
 use crate::scene::Scene;
+use crate::scene::camera::RasterCamera;
 use queue::PathQueue;
 use std::f32::consts::PI;
 use std::ops::Range;
@@ -97,7 +97,7 @@ pub struct WavefrontEngine {
 
 impl WavefrontEngine {
     /// An engine for `scene` following paths to `max_depth`, tracing rays
-    /// against `bvh` (built from `scene.triangle_edges()`).
+    /// against `bvh` (built from `crate::accel::scene_triangles(scene)`).
     pub fn new(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
         Self {
             world: World::new(scene, bvh),

@@ -1,6 +1,6 @@
 //! The ray queue: every live path's state, one plain column per field.
 
-use crate::sampling::PathRng;
+use crate::integrator::sampler::PathRng;
 use wide::f32x8;
 
 // Every column's element type is plain old data.

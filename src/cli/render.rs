@@ -1,54 +1,22 @@
-//! The command line: `wavetrace render ...` (the default command).
+//! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
+use crate::cli::profile::Profile;
+use crate::cli::progress::ProgressBar;
+use crate::cli::stats::{RenderStats, Stages};
 use crate::error::{Error, Result};
-use crate::film::{AccMeta, Film};
-use crate::output::{check_writable, write_atomic};
-use crate::profile::Profile;
+use crate::film::{AccMeta, Film, WtaccError};
+use crate::fs::{check_writable, same_file, write_atomic};
+use crate::output::{check_output_format, check_partial_path, write_output};
 use crate::render::{Engine, RenderSettings, Renderer};
+use crate::run::session::{Interrupt, Session, SessionOptions, Stop};
+use crate::run::shard::{SampleRequest, SampleWork, ShardSpec, parse_samples};
 use crate::scene::Scene;
-use crate::session::{Interrupt, Session, SessionOptions, Stop};
-use crate::shard::{SampleWork, write_output};
-use crate::stats::RenderStats;
-use crate::stats::Stages;
-use clap::{Args, Parser, Subcommand};
+use clap::Args;
 use std::io::{IsTerminal, Write};
+use std::ops::Range;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
-
-/// wavetrace: a fast, reproducible CPU path tracer.
-#[derive(Debug, Parser)]
-#[command(
-    name = "wavetrace",
-    version,
-    about,
-    args_conflicts_with_subcommands = true,
-    after_help = "Exit status: 0 when the outputs were written (all samples, or as many as \
-                  --time-limit allowed), or when `merge` wrote its output; 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
-                  143 (SIGTERM) when a signal stopped the render after its current pass, \
-                  the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
-                  leaving the last checkpoint as it was."
-)]
-pub struct Cli {
-    /// What to do; `render` when omitted.
-    #[command(subcommand)]
-    pub command: Option<Command>,
-    /// The render options, when no command is given.
-    #[command(flatten)]
-    pub render: RenderArgs,
-}
-
-/// wavetrace's commands.
-#[derive(Debug, Subcommand)]
-// Parsed once per process: the size of the render variant does not matter.
-#[allow(clippy::large_enum_variant)]
-pub enum Command {
-    /// Render a scene (or one shard's sample range of it) to an image or
-    /// a partial file.
-    Render(RenderArgs),
-    /// Merge the partial files of shards into the image of the whole render.
-    Merge(crate::merge::MergeArgs),
-}
 
 /// Options of `wavetrace render`. Flags override the profile, which
 /// overrides the scene's defaults.
@@ -124,7 +92,7 @@ pub struct RenderArgs {
     pub write_partial: Option<Duration>,
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
-    pub farm: crate::shard::ShardArgs,
+    pub farm: FarmArgs,
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
@@ -139,15 +107,43 @@ fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| format!("{text:?}: {e}"))
 }
 
-/// Run the command line. Returns the process exit status: 0 when the
-/// outputs were written, 128 + the signal number (130 for SIGINT, 143 for
-/// SIGTERM) when a signal stopped the render (after saving the checkpoint).
-/// Errors are for the caller to print (exit status 1).
-pub fn run(cli: Cli) -> Result<ExitCode> {
-    match cli.command {
-        None => render(cli.render),
-        Some(Command::Render(args)) => render(args),
-        Some(Command::Merge(args)) => crate::merge::run(args).map(|()| ExitCode::SUCCESS),
+/// The farm options of `wavetrace render`: sample ranges, shards, partial files.
+#[derive(Clone, Debug, Default, Args)]
+pub struct FarmArgs {
+    /// Render only sample indices A..B (A included, B not) of every pixel,
+    /// out of 0..spp.
+    #[arg(long, value_name = "A..B", value_parser = parse_samples, conflicts_with = "shard")]
+    pub samples: Option<Range<u32>>,
+    /// Render shard I of N (I from 0): the I-th of N near-equal sample
+    /// ranges of 0..spp. `auto` takes I and N from a Slurm job array
+    /// (SLURM_ARRAY_TASK_ID ...) or a Kubernetes Indexed Job
+    /// (JOB_COMPLETION_INDEX, with --shard-count).
+    #[arg(long, value_name = "I/N|auto", value_parser = ShardSpec::parse)]
+    pub shard: Option<ShardSpec>,
+    /// The number of shards, with --shard auto: then a Slurm task ID or a
+    /// JOB_COMPLETION_INDEX is the shard index itself.
+    #[arg(long, value_name = "N")]
+    pub shard_count: Option<u32>,
+    /// Write the render's partial file (.wtacc: per-pixel sums, the sample
+    /// range held, a hash of the scene and settings) for `wavetrace merge`.
+    /// With --partial and no --out, no image is written.
+    #[arg(long, value_name = "FILE.wtacc")]
+    pub partial: Option<PathBuf>,
+    /// Check the scene, the settings, the shard and the outputs, say what
+    /// would be rendered, and exit without rendering (e.g. before
+    /// submitting a farm job).
+    #[arg(long)]
+    pub check: bool,
+}
+
+impl FarmArgs {
+    /// The sample range or shard asked for.
+    pub fn request(&self) -> SampleRequest {
+        SampleRequest {
+            samples: self.samples.clone(),
+            shard: self.shard,
+            shard_count: self.shard_count,
+        }
     }
 }
 
@@ -202,12 +198,12 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let env = |name: &str| std::env::var(name).ok();
     settings.threads = match args.threads {
         Some(threads) => threads,
-        None => crate::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+        None => crate::run::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.validate()?;
-    let work = args.farm.resolve(settings.spp, &env)?;
+    let work = args.farm.request().resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
     if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
         return Err(Error::Settings(format!(
@@ -226,11 +222,11 @@ fn plan(args: RenderArgs) -> Result<Job> {
     });
     let out = args.out.or(default_out);
     if let Some(out) = &out {
-        crate::shard::check_output_format(out)?;
+        check_output_format(out)?;
         check_writable(out)?;
     }
     if let Some(partial) = &partial {
-        crate::shard::check_partial_path(partial)?;
+        check_partial_path(partial)?;
         check_writable(partial)?;
     }
     if let Some(stats) = &args.stats {
@@ -285,15 +281,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let resumed = match &args.resume {
         Some(path) => {
             let (film, saved) = Film::load_with_meta(path, Some(meta.settings_hash))?;
-            crate::session::check_resumable(&film, &settings, &work.range).map_err(
+            crate::run::session::check_resumable(&film, &settings, &work.range).map_err(
                 |mut message| {
                     if let Some((i, n)) = saved.shard {
                         message += &format!(" (it was saved by shard {i}/{n})");
                     }
-                    Error::Accumulation {
+                    Error::from(WtaccError {
                         path: path.clone(),
                         message,
-                    }
+                    })
                 },
             )?;
             Some(film)
@@ -316,7 +312,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         checkpoint,
         checkpoint_every: args
             .checkpoint_every
-            .unwrap_or(crate::session::DEFAULT_CHECKPOINT_EVERY),
+            .unwrap_or(crate::run::session::DEFAULT_CHECKPOINT_EVERY),
         ..SessionOptions::default()
     };
     if let Some((path, every)) = partial_image {
@@ -339,25 +335,6 @@ fn plan(args: RenderArgs) -> Result<Job> {
     })
 }
 
-/// Whether two paths name the same file, whether or not it exists yet:
-/// each is compared as its canonical directory plus its file name.
-fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
-    fn normal(p: &std::path::Path) -> Option<PathBuf> {
-        if let Ok(full) = std::fs::canonicalize(p) {
-            return Some(full);
-        }
-        let dir = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => std::path::Path::new("."),
-        };
-        Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
-    }
-    match (normal(a), normal(b)) {
-        (Some(a), Some(b)) => a == b,
-        _ => a == b,
-    }
-}
-
 /// Refuse two outputs that name the same file: one would overwrite the
 /// other (a checkpoint overwritten by the stats, say).
 fn check_distinct(files: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
@@ -378,7 +355,9 @@ fn check_distinct(files: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
     Ok(())
 }
 
-fn render(args: RenderArgs) -> Result<ExitCode> {
+/// Run `wavetrace render`: the exit status, or an error for the caller to
+/// print.
+pub fn run(args: RenderArgs) -> Result<ExitCode> {
     let load_start = Instant::now();
     let mut job = plan(args)?;
     let mut stages = Stages {
@@ -386,7 +365,6 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         ..Stages::default()
     };
     let quiet = job.quiet || !std::io::stderr().is_terminal();
-    job.session.progress = !quiet;
     let s = &job.settings;
     if job.check {
         // What would be rendered, on stdout: the scene, settings, shard,
@@ -418,7 +396,8 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
 
     let film = job.resumed.take().unwrap_or_else(|| renderer.new_film());
     let mut session = Session::new(&renderer, job.meta, job.session.clone());
-    let report = session.run(film, &interrupt)?;
+    let mut bar = ProgressBar::new(!quiet);
+    let report = session.run(film, &interrupt, &mut bar)?;
     let film = &report.film;
     stages.render = report.render_seconds;
     stages.partial_images = report.partial_seconds;
@@ -496,9 +475,9 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     };
     let stats = RenderStats {
         version: env!("CARGO_PKG_VERSION"),
-        git_commit: crate::stats::GIT_COMMIT,
-        cpu_model: crate::stats::cpu_model(),
-        simd: crate::stats::SIMD,
+        git_commit: crate::cli::stats::GIT_COMMIT,
+        cpu_model: crate::cli::stats::cpu_model(),
+        simd: crate::cli::stats::SIMD,
         scene: job.scene.name.clone(),
         width: s.width,
         height: s.height,
@@ -600,7 +579,7 @@ fn range_note(work: &SampleWork, spp: u32) -> String {
 }
 
 /// The one line a render prints at the end (on stdout).
-fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStats) -> String {
+fn summary(job: &Job, report: &crate::run::session::SessionReport, stats: &RenderStats) -> String {
     let done = stats.spp;
     // The samples per pixel this run was to hold: --spp, or the shard's.
     let wanted = job.work.range.end - job.work.range.start;
@@ -639,15 +618,9 @@ fn summary(job: &Job, report: &crate::session::SessionReport, stats: &RenderStat
             };
             format!(
                 "stopped by {} at {done} of {wanted} spp{range}{resumed} after {:.3} s: {saved}",
-                crate::session::signal_name(sig),
+                crate::run::session::signal_name(sig),
                 stats.seconds
             )
         }
-    }
-}
-
-impl From<clap::Error> for Error {
-    fn from(e: clap::Error) -> Self {
-        Error::Settings(e.to_string())
     }
 }

@@ -6,7 +6,7 @@
 //! is missing, in passes of whole samples per pixel (every pixel gets
 //! samples `a..b`, through [`Renderer::render_samples`]). The target range
 //! is `0..spp` for a whole render, or one shard's sample range
-//! ([`SessionOptions::samples`], see [`crate::shard`]): a shard is rendered
+//! ([`SessionOptions::samples`], see [`crate::run::shard`]): a shard is rendered
 //! by the same loop, with the same progress, time limit, checkpoints and
 //! partial outputs, and its checkpoints are accumulation files like its
 //! partial file (same format, same header, see [`crate::film::AccMeta`]). Passes are sized from the measured speed to
@@ -22,9 +22,8 @@
 
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
+use crate::output::write_output;
 use crate::render::{Counters, RenderSettings, Renderer};
-use crate::shard::write_output;
-use indicatif::{HumanDuration, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -70,8 +69,6 @@ pub struct SessionOptions {
     pub partial_image: Option<PathBuf>,
     /// The interval between partial images.
     pub partial_every: Duration,
-    /// Draw a progress bar on stderr.
-    pub progress: bool,
     /// The length a pass should have.
     pub pass_target: Duration,
 }
@@ -85,7 +82,6 @@ impl Default for SessionOptions {
             checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
             partial_image: None,
             partial_every: Duration::from_secs(10),
-            progress: false,
             pass_target: DEFAULT_PASS_TARGET,
         }
     }
@@ -214,6 +210,82 @@ pub struct SessionReport {
     pub partial_seconds: f64,
 }
 
+/// What a session tells its caller while it runs (a progress bar, say).
+/// Every method does nothing by default.
+pub trait Observer {
+    /// The session starts: `total` samples per pixel to hold, `done` of
+    /// them already held (a resumed film).
+    fn start(&mut self, total: u64, done: u64) {
+        let _ = (total, done);
+    }
+    /// A pass has ended.
+    fn pass(&mut self, progress: &Progress) {
+        let _ = progress;
+    }
+    /// A checkpoint or partial image could not be written; the session
+    /// goes on and tries again at the next interval.
+    fn warning(&mut self, message: &str) {
+        let _ = message;
+    }
+    /// The session has stopped.
+    fn finish(&mut self) {}
+}
+
+/// An [`Observer`] that ignores everything.
+impl Observer for () {}
+
+/// Where a session stands after a pass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Progress {
+    /// Samples per pixel held of the target range.
+    pub done: u64,
+    /// Samples per pixel of the target range.
+    pub total: u64,
+    /// The samples per pixel the session will end with: `total`, or fewer
+    /// when the time limit comes first.
+    pub expected: u64,
+    /// Rays per second of rendering so far.
+    pub rays_per_second: f64,
+    /// Seconds left until the session ends (all samples, or the time
+    /// limit), at the speed of the last pass.
+    pub eta_seconds: f64,
+    /// Whether the time limit, not the samples, ends the session.
+    pub time_limited: bool,
+}
+
+impl Progress {
+    fn new(
+        report: &SessionReport,
+        done: u64,
+        total: u64,
+        per_sample: Option<f64>,
+        time_limit: Option<Duration>,
+        start: Instant,
+    ) -> Self {
+        let rays_per_second = report.counters.rays as f64 / report.render_seconds.max(1e-9);
+        let mut eta = per_sample.unwrap_or(0.0) * total.saturating_sub(done) as f64;
+        let mut expected = total;
+        let mut time_limited = false;
+        if let Some(limit) = time_limit {
+            let left = limit.saturating_sub(start.elapsed()).as_secs_f64();
+            if left < eta {
+                eta = left;
+                time_limited = true;
+                let fit = (left / per_sample.unwrap_or(f64::INFINITY)).floor() as u64;
+                expected = (done + fit).min(total);
+            }
+        }
+        Self {
+            done,
+            total,
+            expected,
+            rays_per_second,
+            eta_seconds: eta.max(0.0),
+            time_limited,
+        }
+    }
+}
+
 /// The render loop of one run: renders the samples of the target range
 /// ([`Session::target`]) that a film is missing, in passes.
 pub struct Session<'a> {
@@ -251,7 +323,12 @@ impl<'a> Session<'a> {
     /// warning and tried again at the next interval. The final
     /// checkpoint and image are left to the caller
     /// ([`save_checkpoint`](Self::save_checkpoint)).
-    pub fn run(&mut self, mut film: Film, interrupt: &Interrupt) -> Result<SessionReport> {
+    pub fn run(
+        &mut self,
+        mut film: Film,
+        interrupt: &Interrupt,
+        observer: &mut dyn Observer,
+    ) -> Result<SessionReport> {
         let target = self.target();
         check_resumable(&film, self.renderer.settings(), &target).map_err(Error::Settings)?;
         let o = self.options.clone();
@@ -275,9 +352,9 @@ impl<'a> Session<'a> {
             partial_images: 0,
             partial_seconds: 0.0,
         };
-        // The bar counts the target range's samples (a shard's, say).
+        // Progress counts the target range's samples (a shard's, say).
         let total = (target.end - target.start) as u64;
-        let bar = progress_bar(o.progress, total, start_spp);
+        observer.start(total, start_spp);
         let mut next_checkpoint = o.checkpoint.as_ref().map(|_| o.checkpoint_every);
         let mut next_partial = o.partial_image.as_ref().map(|_| o.partial_every);
         // Seconds per sample per pixel, measured by the last pass.
@@ -346,9 +423,9 @@ impl<'a> Session<'a> {
                 let t = Instant::now();
                 match self.save_checkpoint(&film) {
                     Ok(saved) => report.checkpoints_saved += saved as u32,
-                    Err(e) => bar.suspend(|| {
-                        eprintln!("warning: checkpoint not saved (will try again): {e}")
-                    }),
+                    Err(e) => {
+                        observer.warning(&format!("checkpoint not saved (will try again): {e}"))
+                    }
                 }
                 report.checkpoint_seconds += t.elapsed().as_secs_f64();
                 next_checkpoint = Some(start.elapsed().saturating_add(o.checkpoint_every));
@@ -359,16 +436,22 @@ impl<'a> Session<'a> {
                 let t = Instant::now();
                 match write_output(path, &film, &self.meta) {
                     Ok(()) => report.partial_images += 1,
-                    Err(e) => bar.suspend(|| {
-                        eprintln!("warning: partial image not written (will try again): {e}")
-                    }),
+                    Err(e) => observer
+                        .warning(&format!("partial image not written (will try again): {e}")),
                 }
                 report.partial_seconds += t.elapsed().as_secs_f64();
                 next_partial = Some(start.elapsed().saturating_add(o.partial_every));
             }
-            update_progress(&bar, &report, done, total, per_sample, o.time_limit, start);
+            observer.pass(&Progress::new(
+                &report,
+                done,
+                total,
+                per_sample,
+                o.time_limit,
+                start,
+            ));
         };
-        bar.finish_and_clear();
+        observer.finish();
         report.elapsed_seconds = start.elapsed().as_secs_f64();
         report.film = film;
         Ok(report)
@@ -499,58 +582,6 @@ impl PassPlan {
         }
         Some((n.min(self.remaining as f64) as u32).max(1))
     }
-}
-
-/// A bar of `total` samples per pixel (the target range's), `done` of them
-/// already held.
-fn progress_bar(show: bool, total: u64, done: u64) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-    let style = ProgressStyle::with_template(
-        "{elapsed_precise} [{wide_bar}] {human_pos}/{human_len} spp  {msg}",
-    )
-    .expect("the progress template is valid")
-    .progress_chars("=> ");
-    bar.set_style(style);
-    bar.set_position(done);
-    bar.set_message("measuring speed");
-    bar.enable_steady_tick(Duration::from_millis(250));
-    bar
-}
-
-fn update_progress(
-    bar: &ProgressBar,
-    report: &SessionReport,
-    done: u64,
-    total: u64,
-    per_sample: Option<f64>,
-    time_limit: Option<Duration>,
-    start: Instant,
-) {
-    if bar.is_hidden() {
-        return;
-    }
-    bar.set_position(done);
-    let rays_per_second = report.counters.rays as f64 / report.render_seconds.max(1e-9);
-    let mut eta = per_sample.unwrap_or(0.0) * total.saturating_sub(done) as f64;
-    let mut note = "";
-    if let Some(limit) = time_limit {
-        let left = limit.saturating_sub(start.elapsed()).as_secs_f64();
-        if left < eta {
-            eta = left;
-            note = " (time limit)";
-            // The bar's end: the samples that will fit.
-            let fit = (left / per_sample.unwrap_or(f64::INFINITY)).floor() as u64;
-            bar.set_length((done + fit).min(total));
-        }
-    }
-    bar.set_message(format!(
-        "{:.2} Mrays/s  ETA {}{note}",
-        rays_per_second / 1e6,
-        HumanDuration(Duration::from_secs_f64(eta.max(0.0)))
-    ));
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! path draws, in order: two numbers to jitter the camera sample over its
 //! pixel, then two numbers (`X1`, `X2`) at every surface it bounces from.
 
-use crate::real::{Real, V3, sin_cos_2pi};
+use crate::math::{Real, V3, sin_cos_2pi};
 use rand_core::Rng;
 use rand_pcg::Pcg32;
 

@@ -4,7 +4,7 @@
 use super::World;
 use super::queue::{MISS, PathQueue};
 use crate::film::{PixelSum, accumulate};
-use crate::real::V3;
+use crate::math::V3;
 
 /// For every path: a hit seen from the front adds `throughput × emitted
 /// radiance`. A miss retires the path — its radiance is one sample of its

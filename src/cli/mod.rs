@@ -1,0 +1,60 @@
+//! The command line: `wavetrace render ...` (the default command).
+
+mod merge;
+pub mod profile;
+pub mod progress;
+mod render;
+pub mod stats;
+
+use crate::error::Result;
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+pub use merge::MergeArgs;
+pub use render::{FarmArgs, RenderArgs};
+
+/// wavetrace: a fast, reproducible CPU path tracer.
+#[derive(Debug, Parser)]
+#[command(
+    name = "wavetrace",
+    version,
+    about,
+    args_conflicts_with_subcommands = true,
+    after_help = "Exit status: 0 when the outputs were written (all samples, or as many as \
+                  --time-limit allowed), or when `merge` wrote its output; 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
+                  143 (SIGTERM) when a signal stopped the render after its current pass, \
+                  the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
+                  leaving the last checkpoint as it was."
+)]
+pub struct Cli {
+    /// What to do; `render` when omitted.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// The render options, when no command is given.
+    #[command(flatten)]
+    pub render: RenderArgs,
+}
+
+/// wavetrace's commands.
+#[derive(Debug, Subcommand)]
+// Parsed once per process: the size of the render variant does not matter.
+#[allow(clippy::large_enum_variant)]
+pub enum Command {
+    /// Render a scene (or one shard's sample range of it) to an image or
+    /// a partial file.
+    Render(RenderArgs),
+    /// Merge the partial files of shards into the image of the whole render.
+    Merge(MergeArgs),
+}
+
+/// Run the command line. Returns the process exit status: 0 when the
+/// outputs were written, 128 + the signal number (130 for SIGINT, 143 for
+/// SIGTERM) when a signal stopped the render (after saving the checkpoint).
+/// Errors are for the caller to print (exit status 1).
+pub fn run(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        None => render::run(cli.render),
+        Some(Command::Render(args)) => render::run(args),
+        Some(Command::Merge(args)) => merge::run(args).map(|()| ExitCode::SUCCESS),
+    }
+}

@@ -1,0 +1,103 @@
+//! Files written whole or not at all, and the checks made on output paths
+//! before any work starts.
+
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+/// A file that could not be read or written, and the system's reason.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {source}", path.display())]
+pub struct FileError {
+    /// The file.
+    pub path: PathBuf,
+    /// The operating system's reason.
+    pub source: std::io::Error,
+}
+
+impl FileError {
+    /// The error `source` about `path`.
+    pub fn new(path: &Path, source: std::io::Error) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// The temporary path beside `path` that [`write_atomic`] writes first.
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or("out".into(), |n| n.to_string_lossy());
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+/// Write a file atomically: everything goes to a temporary file beside it,
+/// which is flushed to disk and then renamed over `path` (and the rename is
+/// flushed too, where the system allows). On any error the
+/// temporary file is removed and `path` is left as it was.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), FileError> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut w = BufWriter::new(std::fs::File::create(&tmp)?);
+        write(&mut w)?;
+        let f = w.into_inner().map_err(|e| e.into_error())?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)?;
+        sync_parent(path);
+        Ok(())
+    })();
+    result.map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        FileError::new(path, source)
+    })
+}
+
+/// Flush `path`'s directory entry to disk, so a rename survives a power cut
+/// or reboot (on Unix; best effort: some file systems refuse to sync a
+/// directory, and the rename has happened either way).
+fn sync_parent(path: &Path) {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+/// Check, before any work starts, that `path` can be written: its directory
+/// exists and a file can be created there.
+pub fn check_writable(path: &Path) -> Result<(), FileError> {
+    let tmp = temp_path(path);
+    std::fs::File::create(&tmp)
+        .and_then(|_| std::fs::remove_file(&tmp))
+        .map_err(|source| FileError::new(path, source))
+}
+
+/// Whether two paths name the same file, whether or not it exists yet:
+/// each is compared as its canonical directory plus its file name.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    fn normal(p: &Path) -> Option<PathBuf> {
+        if let Ok(full) = std::fs::canonicalize(p) {
+            return Some(full);
+        }
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
+    }
+    match (normal(a), normal(b)) {
+        (Some(a), Some(b)) => a == b,
+        _ => a == b,
+    }
+}
