@@ -2,20 +2,23 @@
 
 use crate::accel::bvh::Bvh;
 use crate::error::{Error, Result};
-use crate::film::{Film, PixelSum, accumulate};
+use crate::film::{Film, PixelSum};
 use crate::integrator::reference::ReferenceTracer;
+use crate::integrator::sampler::{Independent, Sampler};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
+use crate::integrator::{Counters, Frame, TileJob, estimator_fingerprint};
 use crate::scene::Scene;
 use rayon::prelude::*;
+use std::any::Any;
 use std::ops::Range;
 use std::sync::Arc;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Which path tracer computes the samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
-#[derive(clap::ValueEnum)]
 pub enum Engine {
     /// The scalar recursive reference tracer (the oracle).
     Reference,
@@ -24,6 +27,9 @@ pub enum Engine {
 }
 
 impl Engine {
+    /// Every engine's name.
+    pub const NAMES: &[&str] = &["reference", "wavefront"];
+
     /// The engine's name as the command line and stats spell it.
     pub fn name(self) -> &'static str {
         match self {
@@ -140,121 +146,19 @@ impl RenderSettings {
     }
 }
 
-/// The version of the estimator: bump it whenever a change alters the
-/// samples a path produces in a way [`estimator_fingerprint`]'s probes
-/// would not see (the order random numbers are drawn in, say).
-pub const ESTIMATOR_VERSION: u32 = 1;
-
-/// A fingerprint of how this build computes samples: [`ESTIMATOR_VERSION`]
-/// and the bits of a few probes of the shared kernels — random draws,
-/// a hemisphere direction, `sin_cos_2pi`, a Möller–Trumbore hit, the film's
-/// fixed-point scale. A change to any of them changes every image's bits,
-/// and so changes this fingerprint and [`RenderSettings::image_hash`].
-pub fn estimator_fingerprint() -> u64 {
-    use crate::accel::triangle::{TriangleEdges, V3Tri, moller_trumbore};
-    use crate::integrator::sampler::{PathRng, uniform_hemisphere};
-    use crate::math::{V3, sin_cos_2pi};
-    let mut h = xxhash_rust::xxh3::Xxh3::new();
-    let mut put = |x: f32| h.update(&x.to_bits().to_le_bytes());
-    let mut rng = PathRng::new(0x5EED, 7, 11);
-    for _ in 0..4 {
-        put(rng.next_f32());
-    }
-    let d = uniform_hemisphere(V3::new(0.6f32, -0.48, 0.64), 0.3, 0.7);
-    [d.x, d.y, d.z].into_iter().for_each(&mut put);
-    let (sin, cos) = sin_cos_2pi(0.123f32);
-    put(sin);
-    put(cos);
-    let tri = TriangleEdges::new(
-        glam::Vec3::new(-1.0, -1.0, 2.0),
-        glam::Vec3::new(1.5, -1.0, 2.5),
-        glam::Vec3::new(0.0, 1.0, 1.5),
-    );
-    let o = V3::new(0.1f32, 0.2, -0.3);
-    let (_, t) = moller_trumbore(o, V3::new(0.0, 0.0, 1.0), &V3Tri::from(&tri), 0.0);
-    put(t);
-    h.update(&crate::film::FIXED_POINT_SCALE.to_bits().to_le_bytes());
-    h.update(&ESTIMATOR_VERSION.to_le_bytes());
-    h.digest()
-}
-
-/// Seconds spent in each wavefront stage, summed over threads.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
-pub struct StageSeconds {
-    /// Camera ray generation.
-    pub generate: f64,
-    /// Closest-hit queries.
-    pub intersect: f64,
-    /// Emission, retirement and binning.
-    pub shade: f64,
-    /// Direction sampling, throughput and compaction.
-    pub bounce: f64,
-}
-
-impl StageSeconds {
-    /// The stages by name, for the stats file; empty when nothing was
-    /// timed (the reference engine has no stages).
-    pub fn by_name(&self) -> std::collections::BTreeMap<&'static str, f64> {
-        let all = [
-            ("generate", self.generate),
-            ("intersect", self.intersect),
-            ("shade", self.shade),
-            ("bounce", self.bounce),
-        ];
-        if all.iter().all(|(_, s)| *s == 0.0) {
-            return Default::default();
-        }
-        all.into_iter().collect()
-    }
-}
-
-impl std::ops::AddAssign for StageSeconds {
-    fn add_assign(&mut self, o: Self) {
-        self.generate += o.generate;
-        self.intersect += o.intersect;
-        self.shade += o.shade;
-        self.bounce += o.bounce;
-    }
-}
-
-/// Work counted while rendering.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Counters {
-    /// Camera paths traced.
-    pub paths: u64,
-    /// Rays cast (closest-hit queries).
-    pub rays: u64,
-    /// Samples refused as NaN, infinite or negative.
-    pub invalid_samples: u64,
-    /// Time per wavefront stage (zero for the reference engine).
-    pub stages: StageSeconds,
-}
-
-impl std::ops::AddAssign for Counters {
-    fn add_assign(&mut self, o: Self) {
-        self.paths += o.paths;
-        self.rays += o.rays;
-        self.invalid_samples += o.invalid_samples;
-        self.stages += o.stages;
-    }
-}
-
-fn sum_counters(mut a: Counters, b: Counters) -> Counters {
-    a += b;
-    a
-}
-
 /// A scene prepared for one engine and one set of settings, with its pool
 /// of worker threads.
 pub struct Renderer {
     settings: RenderSettings,
-    scene: Scene,
+    /// The camera at the render's size, the seed, the batch size.
+    frame: Frame,
     pool: rayon::ThreadPool,
     engine: EngineState,
     /// The hierarchy both engines trace against.
     bvh: Arc<Bvh>,
-    /// Wavefront queues, one per worker thread (uncontended locks).
-    scratch: Vec<std::sync::Mutex<Scratch>>,
+    /// Wavefront queues, one per worker thread (uncontended locks), made
+    /// on first use for the sampler's path type.
+    scratch: Vec<Mutex<Option<Box<dyn Any + Send>>>>,
 }
 
 enum EngineState {
@@ -284,17 +188,17 @@ impl Renderer {
                 EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth, bvh.clone()))
             }
         };
-        let scratch = match settings.engine {
-            Engine::Wavefront => (0..settings.threads)
-                .map(|_| std::sync::Mutex::new(Scratch::new(settings.batch_size)))
-                .collect(),
-            Engine::Reference => Vec::new(),
+        let frame = Frame {
+            camera: scene.camera.for_resolution(settings.width, settings.height),
+            width: settings.width,
+            seed: settings.seed,
+            batch_size: settings.batch_size,
         };
         Ok(Self {
             bvh,
-            scratch,
+            scratch: (0..settings.threads).map(|_| Mutex::new(None)).collect(),
             settings: settings.clone(),
-            scene: scene.clone(),
+            frame,
             pool,
             engine,
         })
@@ -359,17 +263,15 @@ impl Renderer {
         );
     }
 
-    /// Add samples `range` of every pixel to `sums`, a tile (or row) at a
-    /// time; tiles not yet started when `stop()` turns true are skipped.
-    /// Returns the work counted and whether every tile was rendered.
+    /// Add samples `range` of every pixel to `sums`, a tile at a time;
+    /// tiles not yet started when `stop()` turns true are skipped. Returns
+    /// the work counted and whether every tile was rendered.
     fn render_sums(
         &self,
         range: Range<u32>,
         sums: &mut [PixelSum],
         stop: &(dyn Fn() -> bool + Sync),
     ) -> (Counters, bool) {
-        let s = &self.settings;
-        let camera = self.scene.camera.for_resolution(s.width, s.height);
         let skipped = AtomicBool::new(false);
         let go = || {
             let stopping = stop();
@@ -378,57 +280,48 @@ impl Renderer {
             }
             !stopping
         };
-        let counters = self.pool.install(|| match &self.engine {
-            EngineState::Reference(tracer) => sums
-                .par_chunks_mut(s.width as usize)
+        let sampler = Independent::new(self.settings.seed);
+        let tile = tile_pixels(&self.settings, range.len());
+        let counters = self.pool.install(|| {
+            sums.par_chunks_mut(tile)
                 .enumerate()
                 .filter(|_| go())
-                .map(|(y, row)| {
-                    let mut c = Counters::default();
-                    for (x, sum) in row.iter_mut().enumerate() {
-                        for sample in range.clone() {
-                            let l = tracer.sample(
-                                &camera,
-                                s.seed,
-                                (x as u32, y as u32),
-                                sample,
-                                &mut c.rays,
-                            );
-                            c.paths += 1;
-                            if !accumulate(sum, l) {
-                                c.invalid_samples += 1;
-                            }
-                        }
-                    }
-                    c
+                .map(|(i, sums)| {
+                    let start = (i * tile) as u32;
+                    let mut job = TileJob {
+                        frame: &self.frame,
+                        pixels: start..start + sums.len() as u32,
+                        samples: range.clone(),
+                        sums,
+                    };
+                    self.render_tile(&sampler, &mut job)
                 })
-                .reduce(Counters::default, sum_counters),
-            EngineState::Wavefront(engine) => {
-                let tile = tile_pixels(s, range.len());
-                sums.par_chunks_mut(tile)
-                    .enumerate()
-                    .filter(|_| go())
-                    .map(|(i, sums)| {
-                        // Each worker thread reuses its own queues.
-                        let worker = rayon::current_thread_index().unwrap_or(0);
-                        let mut scratch = self.scratch[worker].lock().expect("scratch lock");
-                        let start = (i * tile) as u32;
-                        let pixels = start..start + sums.len() as u32;
-                        engine.render_tile(
-                            &mut scratch,
-                            &camera,
-                            s.width,
-                            s.seed,
-                            pixels,
-                            range.clone(),
-                            s.batch_size,
-                            sums,
-                        )
-                    })
-                    .reduce(Counters::default, sum_counters)
-            }
+                .reduce(Counters::default, |a, b| a + b)
         });
         (counters, !skipped.load(Ordering::Relaxed))
+    }
+
+    /// One tile, by whichever engine this renderer runs.
+    fn render_tile<S: Sampler>(&self, sampler: &S, job: &mut TileJob) -> Counters
+    where
+        S::Path: 'static,
+    {
+        match &self.engine {
+            EngineState::Reference(tracer) => tracer.render_tile(sampler, job),
+            EngineState::Wavefront(engine) => {
+                // Each worker thread reuses its own queues.
+                let worker = rayon::current_thread_index().unwrap_or(0);
+                let mut slot = self.scratch[worker].lock().expect("scratch lock");
+                if !slot.as_ref().is_some_and(|s| s.is::<Scratch<S::Path>>()) {
+                    *slot = Some(Box::new(Scratch::<S::Path>::new(self.settings.batch_size)));
+                }
+                let scratch = slot
+                    .as_mut()
+                    .and_then(|s| s.downcast_mut::<Scratch<S::Path>>())
+                    .expect("made above");
+                engine.render_tile(sampler, scratch, job)
+            }
+        }
     }
 
     /// Render samples `0..spp` into a new film, timing it.

@@ -5,6 +5,7 @@
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 use wavetrace::integrator::reference::ReferenceTracer;
+use wavetrace::integrator::sampler::Independent;
 use wavetrace::scene::{Scene, SceneError};
 
 /// A fresh directory for one test's files.
@@ -329,8 +330,8 @@ fn reference_bvh_and_brute_force_render_the_same_bits() {
     for y in 0..24 {
         for x in 0..24 {
             for k in 0..4 {
-                let a = bvh.sample(&camera, 9, (x, y), k, &mut r1);
-                let b = brute.sample(&camera, 9, (x, y), k, &mut r2);
+                let a = bvh.sample(&camera, &Independent::new(9), (x, y), k, &mut r1);
+                let b = brute.sample(&camera, &Independent::new(9), (x, y), k, &mut r2);
                 assert_eq!(
                     a.to_array().map(f32::to_bits),
                     b.to_array().map(f32::to_bits)

@@ -15,7 +15,7 @@
 use glam::Vec3;
 use wavetrace::film::{FIXED_POINT_SCALE, Film};
 use wavetrace::integrator::reference::ReferenceTracer;
-use wavetrace::integrator::sampler::PathRng;
+use wavetrace::integrator::sampler::{Independent, PathRng, Sampler};
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::{Scene, file};
 
@@ -25,9 +25,10 @@ const LIGHT: Vec3 = Vec3::splat(10.0);
 const LIGHT_Y: f32 = -0.996_396_4;
 
 fn trace(tracer: &ReferenceTracer, o: Vec3, d: Vec3, seed: u32) -> (Vec3, u64) {
-    let mut rng = PathRng::new(42, seed, 0);
+    let sampler = Independent::new(42);
+    let mut path = sampler.start(seed, 0);
     let mut rays = 0;
-    let l = tracer.trace_path(o, d.normalize(), 0, &mut rng, &mut rays);
+    let l = tracer.trace_path(&sampler, &mut path, (o, d.normalize()), 0, &mut rays);
     (l, rays)
 }
 

@@ -17,7 +17,8 @@
 //!   2.6934 / √N (asymptotic, p = 1e-6); and chi-square over 32 bins as for φ.
 
 use glam::Vec3;
-use wavetrace::integrator::sampler::{PathRng, uniform_hemisphere};
+use wavetrace::integrator::bsdf::diffuse::uniform_hemisphere;
+use wavetrace::integrator::sampler::PathRng;
 use wavetrace::math::V3;
 
 const N: usize = 100_000;

@@ -47,7 +47,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Path tracer.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = engine_parser())]
     pub engine: Option<Engine>,
     /// Paths per wavefront batch [default: 4096]. A tuning knob for
     /// benchmarks: it never changes the image.
@@ -93,6 +93,13 @@ pub struct RenderArgs {
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
     pub farm: FarmArgs,
+}
+
+/// `--engine`: one of [`Engine::NAMES`].
+fn engine_parser() -> impl clap::builder::TypedValueParser<Value = Engine> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(Engine::NAMES)
+        .map(|name: String| Engine::from_name(&name).expect("a possible value"))
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.

@@ -1,9 +1,214 @@
 //! What a path does at each vertex, and the two engines that trace paths.
 //!
-//! - [`sampler`]: the random numbers of every path;
-//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
+//! - [`sampler`]: the numbers every path uses, by dimension;
+//! - [`bsdf`]: one scattering routine per material model, written once for
+//!   scalar and 8-wide code;
+//! - [`reference`](mod@reference): the scalar recursive reference tracer
+//!   (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (the default).
+//!
+//! Both engines render a [`TileJob`] — samples of a run of pixels into
+//! those pixels' sums — and count their work in [`Counters`]. The two differ
+//! in control flow only: they share the camera, the sampler, the scattering
+//! routines and the acceleration structure, so they trace the very same
+//! paths.
 
+pub mod bsdf;
 pub mod reference;
 pub mod sampler;
 pub mod wavefront;
+
+use crate::film::PixelSum;
+use crate::scene::camera::RasterCamera;
+use std::ops::Range;
+
+/// What every tile of a render shares: the camera at the render's size,
+/// the seed and the batch size.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// The camera, set up for the image's size.
+    pub camera: RasterCamera,
+    /// Image width in pixels (pixel `p` is at `(p % width, p / width)`).
+    pub width: u32,
+    /// The seed of every random number.
+    pub seed: u64,
+    /// Paths per wavefront batch (does not change the image).
+    pub batch_size: usize,
+}
+
+/// One unit of work for a thread: samples `samples` of the pixels
+/// `pixels` (row-major indices), added to `sums` (one per pixel of the
+/// run, `sums[0]` is pixel `pixels.start`).
+pub struct TileJob<'a> {
+    /// The render's constants.
+    pub frame: &'a Frame,
+    /// The pixels, row-major indices.
+    pub pixels: Range<u32>,
+    /// The sample indices of every pixel.
+    pub samples: Range<u32>,
+    /// The pixels' sums.
+    pub sums: &'a mut [PixelSum],
+}
+
+impl TileJob<'_> {
+    /// The sums of pixel `pixel` (a row-major index within the tile).
+    #[inline]
+    pub fn sum_of(&mut self, pixel: u32) -> &mut PixelSum {
+        &mut self.sums[(pixel - self.pixels.start) as usize]
+    }
+
+    /// Pixel `pixel`'s column and row.
+    #[inline]
+    pub fn xy(&self, pixel: u32) -> (u32, u32) {
+        (pixel % self.frame.width, pixel / self.frame.width)
+    }
+}
+
+/// The stages of the wavefront engine, in the order a path meets them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Camera rays for a batch of (pixel, sample) pairs.
+    Generate,
+    /// Closest hits.
+    Intersect,
+    /// Emission seen at the hits.
+    Shade,
+    /// Finished paths added to the film, and dropped from the queue.
+    Retire,
+    /// Next directions and throughputs.
+    Bounce,
+}
+
+impl Stage {
+    /// Every stage, in order.
+    pub const ALL: [Stage; 5] = [
+        Stage::Generate,
+        Stage::Intersect,
+        Stage::Shade,
+        Stage::Retire,
+        Stage::Bounce,
+    ];
+
+    /// The stage's name in stats.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Generate => "generate",
+            Stage::Intersect => "intersect",
+            Stage::Shade => "shade",
+            Stage::Retire => "retire",
+            Stage::Bounce => "bounce",
+        }
+    }
+}
+
+/// Seconds spent in each wavefront stage, summed over threads.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageSeconds([f64; Stage::ALL.len()]);
+
+impl StageSeconds {
+    /// Run `f` as (part of) stage `stage`, adding its wall-clock time.
+    #[inline]
+    pub fn time<T>(&mut self, stage: Stage, f: impl FnOnce() -> T) -> T {
+        let start = std::time::Instant::now();
+        let out = f();
+        self.0[stage as usize] += start.elapsed().as_secs_f64();
+        out
+    }
+
+    /// The seconds of one stage.
+    pub fn of(&self, stage: Stage) -> f64 {
+        self.0[stage as usize]
+    }
+
+    /// The stages by name, for the stats file; empty when nothing was
+    /// timed (the reference engine has no stages).
+    pub fn by_name(&self) -> std::collections::BTreeMap<&'static str, f64> {
+        if self.0.iter().all(|s| *s == 0.0) {
+            return Default::default();
+        }
+        Stage::ALL.iter().map(|s| (s.name(), self.of(*s))).collect()
+    }
+}
+
+impl std::ops::AddAssign for StageSeconds {
+    fn add_assign(&mut self, o: Self) {
+        for (a, b) in self.0.iter_mut().zip(o.0) {
+            *a += b;
+        }
+    }
+}
+
+/// Work counted while rendering.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counters {
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Rays cast (closest-hit queries).
+    pub rays: u64,
+    /// Samples refused as NaN, infinite or negative.
+    pub invalid_samples: u64,
+    /// Time per wavefront stage (zero for the reference engine).
+    pub stages: StageSeconds,
+}
+
+impl std::ops::AddAssign for Counters {
+    fn add_assign(&mut self, o: Self) {
+        self.paths += o.paths;
+        self.rays += o.rays;
+        self.invalid_samples += o.invalid_samples;
+        self.stages += o.stages;
+    }
+}
+
+impl std::ops::Add for Counters {
+    type Output = Self;
+    fn add(mut self, o: Self) -> Self {
+        self += o;
+        self
+    }
+}
+
+/// The version of the estimator: bump it whenever a change alters the
+/// samples a path produces in a way [`estimator_fingerprint`]'s probes
+/// would not see (the order random numbers are drawn in, say).
+pub const ESTIMATOR_VERSION: u32 = 1;
+
+/// A fingerprint of how this build computes samples: [`ESTIMATOR_VERSION`]
+/// and the bits of a few probes of the shared kernels — random draws,
+/// a scattered direction, `sin_cos_2pi`, a Möller–Trumbore hit, the film's
+/// fixed-point scale. A change to any of them changes every image's bits,
+/// and so changes this fingerprint (and the settings hash that checkpoints
+/// and shards are checked against).
+pub fn estimator_fingerprint() -> u64 {
+    use crate::accel::triangle::{TriangleEdges, V3Tri, moller_trumbore};
+    use crate::math::{V3, sin_cos_2pi};
+    use sampler::{Independent, Sampler};
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    let mut put = |x: f32| h.update(&x.to_bits().to_le_bytes());
+    let independent = Independent::new(0x5EED);
+    let mut path = independent.start(7, 11);
+    for _ in 0..4 {
+        put(independent.next(&mut path));
+    }
+    let d = bsdf::diffuse::sample_uniform(
+        V3::new(0.6f32, -0.48, 0.64),
+        V3::new(1.0, 1.0, 1.0),
+        [0.3, 0.7],
+    )
+    .wi;
+    [d.x, d.y, d.z].into_iter().for_each(&mut put);
+    let (sin, cos) = sin_cos_2pi(0.123f32);
+    put(sin);
+    put(cos);
+    let tri = TriangleEdges::new(
+        glam::Vec3::new(-1.0, -1.0, 2.0),
+        glam::Vec3::new(1.5, -1.0, 2.5),
+        glam::Vec3::new(0.0, 1.0, 1.5),
+    );
+    let o = V3::new(0.1f32, 0.2, -0.3);
+    let (_, t) = moller_trumbore(o, V3::new(0.0, 0.0, 1.0), &V3Tri::from(&tri), 0.0);
+    put(t);
+    h.update(&crate::film::FIXED_POINT_SCALE.to_bits().to_le_bytes());
+    h.update(&ESTIMATOR_VERSION.to_le_bytes());
+    h.digest()
+}

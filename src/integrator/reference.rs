@@ -19,7 +19,10 @@
 
 use crate::accel::bvh::Bvh;
 use crate::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
-use crate::integrator::sampler::{PathRng, uniform_hemisphere};
+use crate::film::accumulate;
+use crate::integrator::bsdf::{diffuse, facing};
+use crate::integrator::sampler::Sampler;
+use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
 use crate::scene::Scene;
 use crate::scene::camera::RasterCamera;
@@ -97,13 +100,14 @@ impl ReferenceTracer {
     }
 
     /// The radiance arriving at `o` from direction `-d`, for a ray at
-    /// `depth` (camera rays are depth 0). `rays` counts the rays cast.
-    pub fn trace_path(
+    /// `depth` (camera rays are depth 0), with the path's numbers drawn
+    /// from `sampler` at `path`. `rays` counts the rays cast.
+    pub fn trace_path<S: Sampler>(
         &self,
-        o: Vec3,
-        d: Vec3,
+        sampler: &S,
+        path: &mut S::Path,
+        (o, d): (Vec3, Vec3),
         depth: u32,
-        rng: &mut PathRng,
         rays: &mut u64,
     ) -> Vec3 {
         if depth >= self.max_depth {
@@ -117,39 +121,50 @@ impl ReferenceTracer {
         let material = &self.scene.materials[triangle.material as usize];
 
         // Seen from the front, the surface emits; either side reflects.
-        let front = V3::from(d).dot(V3::from(triangle.normal)) < 0.0;
+        let (front, normal) = facing(V3::from(triangle.normal), V3::from(d));
         let emittance = if front { material.emission } else { Vec3::ZERO };
-        let normal = if front {
-            triangle.normal
-        } else {
-            -triangle.normal
-        };
 
         let new_origin = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-        let (x1, x2) = (rng.next_f32(), rng.next_f32());
-        let new_dir = Vec3::from(uniform_hemisphere(V3::from(normal), x1, x2));
-
-        let probability = 1.0 / (2.0 * PI);
-        // cos θ = X1 by construction; dot(new_dir, normal) equals it up to
-        // rounding, which can make it -1e-7 and a sample negative.
-        let cos_theta = x1;
-        let brdf = material.reflectance / PI;
-        let incoming = self.trace_path(new_origin, new_dir, depth + 1, rng, rays);
-        emittance + brdf * incoming * cos_theta / probability
+        let brdf = V3::from(material.reflectance / PI);
+        let s = diffuse::sample_uniform(normal, brdf, sampler.next_2d(path));
+        let incoming = self.trace_path(
+            sampler,
+            path,
+            (new_origin, Vec3::from(s.wi)),
+            depth + 1,
+            rays,
+        );
+        emittance + Vec3::from(s.f) * incoming * s.cos / s.pdf
     }
 
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the
     /// pixel's area, traced from depth 0.
-    pub fn sample(
+    pub fn sample<S: Sampler>(
         &self,
         camera: &RasterCamera,
-        seed: u64,
+        sampler: &S,
         (x, y): (u32, u32),
         sample: u32,
         rays: &mut u64,
     ) -> Vec3 {
-        let mut rng = PathRng::new(seed, camera.pixel_index(x, y), sample);
-        let (o, d) = camera.jittered_ray(&mut rng, x, y);
-        self.trace_path(o, d, 0, &mut rng, rays)
+        let mut path = sampler.start(camera.pixel_index(x, y), sample);
+        let ray = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
+        self.trace_path(sampler, &mut path, ray, 0, rays)
+    }
+
+    /// Render a tile: every sample of every pixel, one path at a time.
+    pub fn render_tile<S: Sampler>(&self, sampler: &S, job: &mut TileJob) -> Counters {
+        let mut c = Counters::default();
+        for pixel in job.pixels.clone() {
+            let xy = job.xy(pixel);
+            for sample in job.samples.clone() {
+                let l = self.sample(&job.frame.camera, sampler, xy, sample, &mut c.rays);
+                c.paths += 1;
+                if !accumulate(job.sum_of(pixel), l) {
+                    c.invalid_samples += 1;
+                }
+            }
+        }
+        c
     }
 }

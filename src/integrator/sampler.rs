@@ -1,14 +1,66 @@
-//! Random numbers and the report's hemisphere sampling.
+//! The numbers every path uses: a [`Sampler`] gives sample `sample` of
+//! pixel `pixel` its numbers in order, dimension by dimension.
 //!
-//! Every random number a path uses comes from its own PCG stream keyed by
-//! `(seed, pixel, sample)`, so an image depends only on the seed — never on
-//! the thread count, the batch size or the order work is scheduled in. A
-//! path draws, in order: two numbers to jitter the camera sample over its
-//! pixel, then two numbers (`X1`, `X2`) at every surface it bounces from.
+//! Every number a path uses is a function of `(seed, pixel, sample index,
+//! dimension)` only, so an image depends only on the seed — never on the
+//! thread count, the batch size, the sample passes or the order work is
+//! scheduled in. A path draws its numbers in a fixed order, and the
+//! dimension of a number is how many the path drew before it: the camera
+//! takes dimensions 0 and 1 (where in the pixel), and each surface the path
+//! bounces from takes the next ones, as many as its integrator uses at a
+//! vertex.
 
-use crate::math::{Real, V3, sin_cos_2pi};
 use rand_core::Rng;
 use rand_pcg::Pcg32;
+
+/// Where the numbers of every path come from.
+pub trait Sampler: Send + Sync {
+    /// One path's place in its numbers: plain old data, so the wavefront
+    /// queue keeps a column of them.
+    type Path: bytemuck::Pod + std::fmt::Debug + Send + Sync;
+
+    /// The numbers of sample `sample` of pixel `pixel`, at dimension 0.
+    fn start(&self, pixel: u32, sample: u32) -> Self::Path;
+
+    /// The path's number at its next dimension, in `[0, 1)`.
+    fn next(&self, path: &mut Self::Path) -> f32;
+
+    /// The path's numbers at its next two dimensions.
+    #[inline]
+    fn next_2d(&self, path: &mut Self::Path) -> [f32; 2] {
+        let a = self.next(path);
+        [a, self.next(path)]
+    }
+}
+
+/// Independent uniform numbers: dimension `k` of a path is the `k`-th
+/// number of its own PCG stream ([`PathRng`]), keyed by
+/// `(seed, pixel, sample)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Independent {
+    seed: u64,
+}
+
+impl Independent {
+    /// The sampler of seed `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self { seed }
+    }
+}
+
+impl Sampler for Independent {
+    type Path = PathRng;
+
+    #[inline]
+    fn start(&self, pixel: u32, sample: u32) -> PathRng {
+        PathRng::new(self.seed, pixel, sample)
+    }
+
+    #[inline]
+    fn next(&self, path: &mut PathRng) -> f32 {
+        path.next_f32()
+    }
+}
 
 /// The random stream of one camera sample: a `rand_pcg::Pcg32` kept as its
 /// two plain words (state and stream), so that a queue's column of them is
@@ -56,37 +108,9 @@ pub fn splitmix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// A direction on the hemisphere around unit normal `n`, uniform in solid
-/// angle (pdf `1/2π`), from two uniform numbers — the report's method.
-///
-/// In the local frame with `n` as the y axis: `cos θ = X1`,
-/// `sin θ = sqrt(1 - X1²)`, `φ = 2π·X2`,
-/// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`. The frame around `n` is
-/// Scratchapixel's (the report's reference \[3\]): a tangent `nt` orthogonal
-/// to `n` built from its two largest components, and `nb = n × nt`.
-#[inline(always)]
-pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
-    let sin_theta = (-x1).mul_add(x1, R::splat(1.0)).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_2pi(x2);
-    let (lx, ly, lz) = (sin_theta * cos_phi, x1, sin_theta * sin_phi);
-
-    let zero = R::splat(0.0);
-    let use_x = n.y.abs().lt(n.x.abs());
-    let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
-    let inv_yz = R::splat(1.0) / (n.y * n.y + n.z * n.z).sqrt();
-    let nt = V3::select(
-        use_x,
-        V3::new(n.z * inv_xz, zero, -n.x * inv_xz),
-        V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
-    );
-    let nb = n.cross(nt);
-    nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wide::f32x8;
 
     #[test]
     fn draws_are_rand_pcg_draws() {
@@ -111,31 +135,12 @@ mod tests {
     }
 
     #[test]
-    fn simd_hemisphere_equals_scalar_bitwise() {
-        let mut rng = PathRng::new(7, 3, 9);
-        for _ in 0..5_000 {
-            let ns: [glam::Vec3; 8] = std::array::from_fn(|_| {
-                let v = glam::Vec3::new(
-                    rng.next_f32() - 0.5,
-                    rng.next_f32() - 0.5,
-                    rng.next_f32() - 0.5,
-                );
-                v.try_normalize().unwrap_or(glam::Vec3::Y)
-            });
-            let x1: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
-            let x2: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
-            let n8 = V3::new(
-                f32x8::from(ns.map(|n| n.x)),
-                f32x8::from(ns.map(|n| n.y)),
-                f32x8::from(ns.map(|n| n.z)),
-            );
-            let d8 = uniform_hemisphere(n8, f32x8::from(x1), f32x8::from(x2));
-            for l in 0..8 {
-                let d = uniform_hemisphere(V3::from(ns[l]), x1[l], x2[l]);
-                assert_eq!(d.x.to_bits(), d8.x.to_array()[l].to_bits());
-                assert_eq!(d.y.to_bits(), d8.y.to_array()[l].to_bits());
-                assert_eq!(d.z.to_bits(), d8.z.to_array()[l].to_bits());
-            }
+    fn independent_dimensions_are_the_stream_in_order() {
+        let sampler = Independent::new(9);
+        let mut path = sampler.start(4, 2);
+        let mut rng = PathRng::new(9, 4, 2);
+        for _ in 0..10 {
+            assert_eq!(sampler.next(&mut path).to_bits(), rng.next_f32().to_bits());
         }
     }
 }

@@ -22,8 +22,9 @@
 
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
+use crate::integrator::Counters;
 use crate::output::write_output;
-use crate::render::{Counters, RenderSettings, Renderer};
+use crate::render::{RenderSettings, Renderer};
 use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::Arc;

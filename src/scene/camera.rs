@@ -1,6 +1,5 @@
 //! The pinhole camera: where each camera ray starts and which way it goes.
 
-use crate::integrator::sampler::PathRng;
 use glam::Vec3;
 
 /// A pinhole camera with an orthonormal frame.
@@ -108,12 +107,10 @@ impl RasterCamera {
         y * self.width + x
     }
 
-    /// The camera ray of one sample of pixel `(x, y)`: the first two numbers
-    /// of the sample's stream jitter it uniformly over the pixel's area.
+    /// The camera ray of one sample of pixel `(x, y)`, at the point
+    /// `u = [u_x, u_y]` (two numbers in `[0, 1)`) of the pixel's area.
     #[inline]
-    pub fn jittered_ray(&self, rng: &mut PathRng, x: u32, y: u32) -> (Vec3, Vec3) {
-        let u = x as f32 + rng.next_f32();
-        let v = y as f32 + rng.next_f32();
-        self.ray(u, v)
+    pub fn pixel_ray(&self, x: u32, y: u32, u: [f32; 2]) -> (Vec3, Vec3) {
+        self.ray(x as f32 + u[0], y as f32 + u[1])
     }
 }

@@ -3,7 +3,7 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{Material, Scene, Triangle};
+use super::{Material, Model, Scene, Triangle};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
@@ -137,6 +137,8 @@ fn default_max_depth() -> Spanned<u32> {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MaterialFile {
+    #[serde(default)]
+    model: Option<Spanned<String>>,
     reflectance: Spanned<[f32; 3]>,
     #[serde(default)]
     emission: Option<Spanned<[f32; 3]>>,
@@ -289,9 +291,27 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 v
             }
         };
+        let model = match &m_ref.model {
+            None => Model::Diffuse,
+            Some(model) => match Model::from_name(model.get_ref()) {
+                Some(m) => m,
+                None => {
+                    return Err(at(
+                        model.span(),
+                        &format!("materials.{name}.model"),
+                        format!(
+                            "unknown model {:?} (known: {})",
+                            model.get_ref(),
+                            Model::NAMES.join(", ")
+                        ),
+                    ));
+                }
+            },
+        };
         index.insert(name.clone(), materials.len() as u32);
         materials.push(Material {
             name: name.clone(),
+            model,
             reflectance,
             emission,
         });
@@ -423,11 +443,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         for om in &obj.materials {
             let name = format!("{}:{}", m.file.get_ref(), om.name);
             mtl_index.push(materials.len() as u32);
-            materials.push(Material {
-                name,
-                reflectance: om.diffuse,
-                emission: om.emission,
-            });
+            materials.push(Material::diffuse(&name, om.diffuse, om.emission));
         }
         for (tri, mat) in obj.triangles.iter().zip(&obj.material) {
             let mat = match mat.map(|k| mtl_index[k]).or(fallback) {

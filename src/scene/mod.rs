@@ -5,35 +5,18 @@
 
 pub mod camera;
 pub mod file;
+pub mod material;
 pub mod mesh;
 pub mod obj;
 
-use crate::scene::camera::Camera;
+use camera::Camera;
 use glam::Vec3;
 
 pub use file::SceneError;
+pub use material::{Material, Model};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
-
-/// An ideal diffuse (Lambertian) material that may also emit.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Material {
-    /// The name the scene file gave it.
-    pub name: String,
-    /// Diffuse reflectance ρ per RGB channel, in `[0, 1]`; the BRDF is ρ/π,
-    /// on both sides of the surface.
-    pub reflectance: Vec3,
-    /// Emitted radiance per RGB channel, towards the front side only.
-    pub emission: Vec3,
-}
-
-impl Material {
-    /// Whether the material emits any light.
-    pub fn is_emissive(&self) -> bool {
-        self.emission.max_element() > 0.0
-    }
-}
 
 /// `normalize(a × b)`, or zero when `a` and `b` span no area. Edges so
 /// long that `a × b` overflows are scaled down first (only then, so every
@@ -154,6 +137,11 @@ impl Scene {
         for m in &self.materials {
             put(m.reflectance);
             put(m.emission);
+            // Diffuse, the first model, hashes as nothing: hashes of scenes
+            // from before models existed stay what they were.
+            match m.model {
+                Model::Diffuse => {}
+            }
         }
         for t in &self.triangles {
             for v in t.v {

@@ -1,7 +1,6 @@
-//! Stage 2, *intersect*: the closest hit of every ray in the queue.
+//! Stage *intersect*: the closest hit of every ray in the queue.
 
-use super::World;
-use super::queue::{MISS, PathQueue};
+use super::queue::{NO_HIT, PathQueue};
 use crate::accel::bvh::Bvh;
 use crate::accel::triangle::{Hit, LaneHits, Triangle8};
 use crate::math::V3;
@@ -21,14 +20,14 @@ pub struct RayBatch {
 /// A scene that is a single leaf (up to 32 triangles) is tested pack by
 /// pack right here; a bigger one goes through the hierarchy, a batch of
 /// rays at a time (interleaved, so memory latency overlaps).
-pub fn intersect(queue: &mut PathQueue, world: &World, batch: &mut RayBatch) {
-    match world.bvh.single_leaf() {
-        Some(packs) => intersect_packs(queue, packs, world.epsilon),
-        None => intersect_bvh(queue, &world.bvh, world.epsilon, batch),
+pub fn intersect<P>(queue: &mut PathQueue<P>, bvh: &Bvh, epsilon: f32, batch: &mut RayBatch) {
+    match bvh.single_leaf() {
+        Some(packs) => intersect_packs(queue, packs, epsilon),
+        None => intersect_bvh(queue, bvh, epsilon, batch),
     }
 }
 
-fn intersect_bvh(queue: &mut PathQueue, bvh: &Bvh, epsilon: f32, batch: &mut RayBatch) {
+fn intersect_bvh<P>(queue: &mut PathQueue<P>, bvh: &Bvh, epsilon: f32, batch: &mut RayBatch) {
     let n = queue.len();
     let [ox, oy, oz] = &queue.o;
     let [dx, dy, dz] = &queue.d;
@@ -45,12 +44,12 @@ fn intersect_bvh(queue: &mut PathQueue, bvh: &Bvh, epsilon: f32, batch: &mut Ray
     for (i, h) in batch.hits.iter().enumerate() {
         match h {
             Some(h) => (queue.t[i], queue.hit[i]) = (h.t, h.triangle),
-            None => queue.hit[i] = MISS,
+            None => queue.hit[i] = NO_HIT,
         }
     }
 }
 
-fn intersect_packs(queue: &mut PathQueue, packs: &[Triangle8], epsilon: f32) {
+fn intersect_packs<P>(queue: &mut PathQueue<P>, packs: &[Triangle8], epsilon: f32) {
     let n = queue.len();
     let t_min = f32x8::splat(epsilon);
     let [ox, oy, oz] = &queue.o;
@@ -70,7 +69,7 @@ fn intersect_packs(queue: &mut PathQueue, packs: &[Triangle8], epsilon: f32) {
         }
         match best.closest() {
             Some(h) => (*t, *hit) = (h.t, h.triangle),
-            None => *hit = MISS,
+            None => *hit = NO_HIT,
         }
     }
 }

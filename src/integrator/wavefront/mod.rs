@@ -1,17 +1,19 @@
-//! The wavefront engine: paths move in batches through four stages.
+//! The wavefront engine: paths move in batches through named stages.
 //!
-//! For each batch of (pixel, sample) pairs:
+//! For each batch of (pixel, sample) pairs, [`generate`](generate::generate)
+//! camera rays into a [`PathQueue`], then once per depth:
 //!
-//! 1. [`generate`](generate::generate) camera rays into a [`PathQueue`];
-//! 2. then, once per depth: [`intersect`](intersect::intersect) every ray
-//!    (8 triangles at a time), [`shade`](shade::shade) (emission; retire
-//!    the paths that escaped or are done), and [`bounce`](bounce::bounce)
-//!    (compact the live paths into bins by material, then each bin's pass:
-//!    next direction and throughput, 8 paths at a time).
+//! 1. [`intersect`](intersect::intersect): the closest hit of every ray
+//!    (8 triangles at a time);
+//! 2. [`shade`](shade::shade): the emission each path sees;
+//! 3. [`retire`](retire::retire): paths that escaped or reached the
+//!    maximum depth go into the film and leave the queue;
+//! 4. [`bounce`](bounce::bounce): the live paths, grouped by material
+//!    model, scatter: next direction and throughput, 8 paths at a time.
 //!
 //! Threads take tiles of pixels; a tile's batches own their queues and
-//! write the tile's pixel sums without locks. Every number a path draws comes
-//! from its own `(seed, pixel, sample)` stream and the film's sums are
+//! write the tile's pixel sums without locks. Every number a path draws is
+//! a function of `(seed, pixel, sample, dimension)` and the film's sums are
 //! exact integers, so the image is the same whatever the thread count,
 //! the batch size or the schedule.
 
@@ -19,67 +21,27 @@ pub mod bounce;
 pub mod generate;
 pub mod intersect;
 pub mod queue;
+pub mod retire;
 pub mod shade;
+pub mod tables;
 
 use crate::accel::bvh::Bvh;
-use crate::film::PixelSum;
-use crate::render::{Counters, StageSeconds};
+use crate::integrator::sampler::Sampler;
+use crate::integrator::{Counters, Stage, TileJob};
 use crate::scene::Scene;
-use crate::scene::camera::RasterCamera;
 use queue::PathQueue;
-use std::f32::consts::PI;
 use std::ops::Range;
 use std::sync::Arc;
-use std::time::Instant;
-
-/// The scene as the stages read it: the hierarchy and per-triangle
-/// shading data.
-pub struct World {
-    /// The bounding volume hierarchy over the triangles.
-    pub bvh: Arc<Bvh>,
-    /// Front-side unit normal of each triangle: x, y, z columns.
-    pub normals: [Vec<f32>; 3],
-    /// Material index of each triangle.
-    pub material_of: Vec<u32>,
-    /// Emitted radiance of each material.
-    pub emission: Vec<[f32; 3]>,
-    /// `reflectance / π` of each triangle's material: R, G, B columns.
-    pub brdf: [Vec<f32>; 3],
-    /// Smallest hit distance (see [`Scene::ray_epsilon`]).
-    pub epsilon: f32,
-}
-
-impl World {
-    /// Prepare `scene`, whose hierarchy is `bvh`, for the stages.
-    pub fn new(scene: &Scene, bvh: Arc<Bvh>) -> Self {
-        Self {
-            bvh,
-            normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
-            material_of: scene.triangles.iter().map(|t| t.material).collect(),
-            emission: scene
-                .materials
-                .iter()
-                .map(|m| m.emission.to_array())
-                .collect(),
-            brdf: [0, 1, 2].map(|c| {
-                let brdf = |t: &crate::scene::Triangle| {
-                    scene.materials[t.material as usize].reflectance / PI
-                };
-                scene.triangles.iter().map(|t| brdf(t)[c]).collect()
-            }),
-            epsilon: scene.ray_epsilon(),
-        }
-    }
-}
+use tables::Tables;
 
 /// Per-thread working memory: the queue and room for the hierarchy's
 /// batched queries.
-pub struct Scratch {
-    queue: PathQueue,
+pub struct Scratch<P> {
+    queue: PathQueue<P>,
     rays: intersect::RayBatch,
 }
 
-impl Scratch {
+impl<P: bytemuck::Pod> Scratch<P> {
     /// Room for batches of `batch_size` paths.
     pub fn new(batch_size: usize) -> Self {
         Self {
@@ -91,59 +53,50 @@ impl Scratch {
 
 /// The wavefront path tracer.
 pub struct WavefrontEngine {
-    world: World,
+    tables: Tables,
+    bvh: Arc<Bvh>,
     max_depth: u32,
 }
 
 impl WavefrontEngine {
     /// An engine for `scene` following paths to `max_depth`, tracing rays
-    /// against `bvh` (built from `crate::accel::scene_triangles(scene)`).
+    /// against `bvh` (built from [`crate::accel::scene_triangles`]).
     pub fn new(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
         Self {
-            world: World::new(scene, bvh),
+            tables: Tables::new(scene),
+            bvh,
             max_depth,
         }
     }
 
-    /// Trace samples `samples` of the pixels `tile` (row-major indices,
-    /// whose sums are `sums`), at most `batch_size` paths at a time.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_tile(
+    /// Render a tile, at most `frame.batch_size` paths at a time: whole
+    /// pixels per batch when they fit, else the pixel's samples split.
+    pub fn render_tile<S: Sampler>(
         &self,
-        scratch: &mut Scratch,
-        camera: &RasterCamera,
-        width: u32,
-        seed: u64,
-        tile: Range<u32>,
-        samples: Range<u32>,
-        batch_size: usize,
-        sums: &mut [PixelSum],
+        sampler: &S,
+        scratch: &mut Scratch<S::Path>,
+        job: &mut TileJob,
     ) -> Counters {
         let mut counters = Counters::default();
-        let spp = samples.end - samples.start;
-        // Whole pixels per batch when they fit; otherwise split the samples.
+        let spp = job.samples.end - job.samples.start;
         // (`saturating_add`: ranges may end at u32::MAX.)
-        let batch = u32::try_from(batch_size).unwrap_or(u32::MAX);
+        let batch = u32::try_from(job.frame.batch_size).unwrap_or(u32::MAX);
         let pixels_per_batch = (batch / spp.max(1)).max(1);
         let samples_per_batch = spp.min(batch).max(1);
-        let mut pixel = tile.start;
-        while pixel < tile.end {
-            let pixels = pixel..pixel.saturating_add(pixels_per_batch).min(tile.end);
-            let mut s = samples.start;
-            while s < samples.end {
-                let batch_samples = s..s.saturating_add(samples_per_batch).min(samples.end);
+        let mut pixel = job.pixels.start;
+        while pixel < job.pixels.end {
+            let pixels = pixel..pixel.saturating_add(pixels_per_batch).min(job.pixels.end);
+            let mut s = job.samples.start;
+            while s < job.samples.end {
+                let samples = s..s.saturating_add(samples_per_batch).min(job.samples.end);
                 self.render_batch(
+                    sampler,
                     scratch,
-                    camera,
-                    width,
-                    seed,
-                    pixels.clone(),
-                    batch_samples.clone(),
-                    tile.start,
-                    sums,
+                    job,
+                    (pixels.clone(), samples.clone()),
                     &mut counters,
                 );
-                s = batch_samples.end;
+                s = samples.end;
             }
             pixel = pixels.end;
         }
@@ -151,49 +104,37 @@ impl WavefrontEngine {
     }
 
     /// One batch through all the stages, depth by depth.
-    #[allow(clippy::too_many_arguments)]
-    fn render_batch(
+    fn render_batch<S: Sampler>(
         &self,
-        scratch: &mut Scratch,
-        camera: &RasterCamera,
-        width: u32,
-        seed: u64,
-        pixels: Range<u32>,
-        samples: Range<u32>,
-        tile_start: u32,
-        sums: &mut [PixelSum],
+        sampler: &S,
+        scratch: &mut Scratch<S::Path>,
+        job: &mut TileJob,
+        (pixels, samples): (Range<u32>, Range<u32>),
         counters: &mut Counters,
     ) {
         let Scratch { queue, rays } = scratch;
-        let clock = Instant::now();
-        generate::generate(queue, camera, width, seed, pixels, samples);
+        let time = &mut counters.stages;
+        time.time(Stage::Generate, || {
+            generate::generate(queue, sampler, job.frame, pixels, samples)
+        });
         counters.paths += queue.len() as u64;
-        let mut stages = StageSeconds {
-            generate: clock.elapsed().as_secs_f64(),
-            ..StageSeconds::default()
-        };
-
         for depth in 0..self.max_depth {
             if queue.is_empty() {
                 break;
             }
-            let clock = Instant::now();
+            let last = depth + 1 == self.max_depth;
             counters.rays += queue.len() as u64;
-            intersect::intersect(queue, &self.world, rays);
-            let t1 = Instant::now();
-            let last = depth + 1 >= self.max_depth;
-            counters.invalid_samples += shade::shade(queue, &self.world, last, tile_start, sums);
-            let t2 = Instant::now();
-            if last {
-                queue.set_len(0);
-            } else {
-                bounce::bounce(queue, &self.world);
+            time.time(Stage::Intersect, || {
+                intersect::intersect(queue, &self.bvh, self.tables.epsilon, rays)
+            });
+            time.time(Stage::Shade, || shade::shade(queue, &self.tables));
+            counters.invalid_samples +=
+                time.time(Stage::Retire, || retire::retire(queue, last, job));
+            if !last {
+                time.time(Stage::Bounce, || {
+                    bounce::bounce(queue, sampler, &self.tables)
+                });
             }
-            let t3 = Instant::now();
-            stages.intersect += (t1 - clock).as_secs_f64();
-            stages.shade += (t2 - t1).as_secs_f64();
-            stages.bounce += (t3 - t2).as_secs_f64();
         }
-        counters.stages += stages;
     }
 }

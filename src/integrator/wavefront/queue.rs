@@ -1,50 +1,46 @@
-//! The ray queue: every live path's state, one plain column per field.
+//! The path queue: every live path's state, one plain column per field.
 
-use crate::integrator::sampler::PathRng;
 use wide::f32x8;
 
-// Every column's element type is plain old data.
-const _: fn() = || {
-    fn pod<T: bytemuck::Pod>() {}
-    pod::<u32>();
-    pod::<f32>();
-    pod::<PathRng>();
-};
+/// In [`PathQueue::hit`]: the ray hit nothing.
+pub const NO_HIT: u32 = u32::MAX;
 
-/// Marks a ray that hit nothing in [`PathQueue::hit`].
-pub const MISS: u32 = u32::MAX;
+/// In [`PathQueue::hit`]: the path is finished and in the film; the next
+/// [`PathQueue::compact`] drops it.
+pub const RETIRED: u32 = u32::MAX - 1;
 
-/// The state of a batch of paths in structure-of-arrays form.
+/// The state of a batch of paths in structure-of-arrays form; `P` is the
+/// sampler's per-path state ([`crate::integrator::sampler::Sampler::Path`]).
 ///
-/// Every column is plain old data (`bytemuck::Pod`): numbers, and the
-/// random streams as their two words.
+/// Every column is plain old data (`bytemuck::Pod`).
 ///
 /// Row `i < len()` of every column belongs to path `i`. Columns are
 /// allocated once, for the batch size rounded up to a multiple of 8, so the
 /// stages can load and store 8 rows at a time. The intersect stage fills
 /// `t` and `hit`; the other columns are the path's state between bounces.
 #[derive(Clone, Debug)]
-pub struct PathQueue {
+pub struct PathQueue<P> {
     len: usize,
     /// Pixel index (row-major) the path's sample belongs to.
     pub pixel: Vec<u32>,
-    /// The path's random stream.
-    pub rng: Vec<PathRng>,
+    /// The path's place in its numbers.
+    pub sampler: Vec<P>,
     /// Ray origin, x/y/z columns.
     pub o: [Vec<f32>; 3],
     /// Unit ray direction, x/y/z columns.
     pub d: [Vec<f32>; 3],
-    /// Throughput: the product of `brdf · cos θ / pdf` along the path, RGB.
+    /// Throughput: the product of `f · cos θ / pdf` along the path, RGB.
     pub beta: [Vec<f32>; 3],
     /// Radiance gathered so far, RGB.
     pub radiance: [Vec<f32>; 3],
     /// Distance to the closest hit (intersect stage output).
     pub t: Vec<f32>,
-    /// Triangle hit, or [`MISS`] (intersect stage output).
+    /// Triangle hit, or [`NO_HIT`] (intersect stage output), or
+    /// [`RETIRED`] (retire stage output).
     pub hit: Vec<u32>,
 }
 
-impl PathQueue {
+impl<P: bytemuck::Pod> PathQueue<P> {
     /// An empty queue with room for `n` paths.
     pub fn with_capacity(n: usize) -> Self {
         let rows = n.div_ceil(8) * 8;
@@ -52,16 +48,18 @@ impl PathQueue {
         Self {
             len: 0,
             pixel: vec![0; rows],
-            rng: vec![PathRng::new(0, 0, 0); rows],
+            sampler: vec![P::zeroed(); rows],
             o: [col(), col(), col()],
             d: [col(), col(), col()],
             beta: [col(), col(), col()],
             radiance: [col(), col(), col()],
             t: col(),
-            hit: vec![MISS; rows],
+            hit: vec![NO_HIT; rows],
         }
     }
+}
 
+impl<P> PathQueue<P> {
     /// Room in rows.
     pub fn capacity(&self) -> usize {
         self.pixel.len()
@@ -82,9 +80,11 @@ impl PathQueue {
         assert!(len <= self.capacity());
         self.len = len;
     }
+}
 
+impl<P: Copy> PathQueue<P> {
     /// Mutable views of rows `0..n` of the columns a new path sets.
-    pub fn rows_mut(&mut self, n: usize) -> impl Iterator<Item = NewPath<'_>> {
+    pub fn rows_mut(&mut self, n: usize) -> impl Iterator<Item = NewPath<'_, P>> {
         let [ox, oy, oz] = &mut self.o;
         let [dx, dy, dz] = &mut self.d;
         let [br, bg, bb] = &mut self.beta;
@@ -95,18 +95,18 @@ impl PathQueue {
         // Zipped column iterators: no per-row bounds checks.
         self.pixel[..n]
             .iter_mut()
-            .zip(self.rng[..n].iter_mut())
+            .zip(self.sampler[..n].iter_mut())
             .zip(f(ox, n).zip(f(oy, n)).zip(f(oz, n)))
             .zip(f(dx, n).zip(f(dy, n)).zip(f(dz, n)))
             .zip(f(br, n).zip(f(bg, n)).zip(f(bb, n)))
             .zip(f(lr, n).zip(f(lg, n)).zip(f(lb, n)))
             .map(
                 |(
-                    ((((pixel, rng), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
+                    ((((pixel, sampler), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
                     ((lr, lg), lb),
                 )| NewPath {
                     pixel,
-                    rng,
+                    sampler,
                     o: [ox, oy, oz],
                     d: [dx, dy, dz],
                     beta: [br, bg, bb],
@@ -119,7 +119,7 @@ impl PathQueue {
     #[inline]
     pub fn move_row(&mut self, from: usize, to: usize) {
         self.pixel[to] = self.pixel[from];
-        self.rng[to] = self.rng[from];
+        self.sampler[to] = self.sampler[from];
         for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
             for col in cols.iter_mut() {
                 col[to] = col[from];
@@ -127,6 +127,29 @@ impl PathQueue {
         }
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
+    }
+
+    /// Drop the [`RETIRED`] rows. Each hole is filled with the last live
+    /// row, so only retired rows cost a move; the order of the paths
+    /// changes, which changes nothing else (each path has its own numbers,
+    /// and the film's sums are exact).
+    pub fn compact(&mut self) {
+        let (mut i, mut end) = (0, self.len);
+        loop {
+            while i < end && self.hit[i] != RETIRED {
+                i += 1;
+            }
+            while i < end && self.hit[end - 1] == RETIRED {
+                end -= 1;
+            }
+            if i >= end {
+                break;
+            }
+            self.move_row(end - 1, i);
+            end -= 1;
+            i += 1;
+        }
+        self.len = end;
     }
 }
 
@@ -144,26 +167,83 @@ pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
 }
 
 /// One row of a [`PathQueue`], as the generate stage writes it.
-pub struct NewPath<'a> {
+pub struct NewPath<'a, P> {
     pixel: &'a mut u32,
-    rng: &'a mut PathRng,
+    sampler: &'a mut P,
     o: [&'a mut f32; 3],
     d: [&'a mut f32; 3],
     beta: [&'a mut f32; 3],
     radiance: [&'a mut f32; 3],
 }
 
-impl NewPath<'_> {
+impl<P> NewPath<'_, P> {
     /// A camera ray: throughput 1, no radiance yet.
     #[inline(always)]
-    pub fn set_camera_ray(self, pixel: u32, rng: PathRng, o: [f32; 3], d: [f32; 3]) {
+    pub fn set_camera_ray(self, pixel: u32, sampler: P, o: [f32; 3], d: [f32; 3]) {
         *self.pixel = pixel;
-        *self.rng = rng;
+        *self.sampler = sampler;
         for c in 0..3 {
             *self.o[c] = o[c];
             *self.d[c] = d[c];
             *self.beta[c] = 1.0;
             *self.radiance[c] = 0.0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A queue of `n` paths, path `i` marked by `pixel = i` and `t = i`,
+    /// and retired where `retired(i)`.
+    fn queue(n: usize, retired: impl Fn(usize) -> bool) -> PathQueue<u64> {
+        let mut q = PathQueue::with_capacity(n);
+        q.set_len(n);
+        for i in 0..n {
+            q.pixel[i] = i as u32;
+            q.sampler[i] = 1000 + i as u64;
+            q.t[i] = i as f32;
+            q.o[2][i] = -(i as f32);
+            q.hit[i] = if retired(i) { RETIRED } else { i as u32 };
+        }
+        q
+    }
+
+    /// Compaction keeps exactly the live paths, each row whole.
+    fn check(n: usize, retired: impl Fn(usize) -> bool + Copy) {
+        let mut q = queue(n, retired);
+        q.compact();
+        let mut kept: Vec<u32> = q.pixel[..q.len()].to_vec();
+        kept.sort_unstable();
+        let want: Vec<u32> = (0..n).filter(|&i| !retired(i)).map(|i| i as u32).collect();
+        assert_eq!(kept, want, "n = {n}");
+        for r in 0..q.len() {
+            let i = q.pixel[r] as usize;
+            assert_eq!(q.sampler[r], 1000 + i as u64);
+            assert_eq!(q.t[r], i as f32);
+            assert_eq!(q.o[2][r], -(i as f32));
+            assert_eq!(q.hit[r], i as u32);
+        }
+    }
+
+    #[test]
+    fn compaction_keeps_exactly_the_live_rows() {
+        for n in [0, 1, 2, 7, 8, 9, 64, 100] {
+            check(n, |_| false);
+            check(n, |_| true);
+            check(n, |i| i % 2 == 0);
+            check(n, |i| i % 2 == 1);
+            check(n, |i| i % 3 == 0);
+            check(n, |i| i < n / 2);
+            check(n, |i| i >= n / 2);
+        }
+    }
+
+    #[test]
+    fn capacity_is_padded_to_whole_lanes() {
+        for (n, rows) in [(1, 8), (8, 8), (9, 16), (4096, 4096)] {
+            assert_eq!(PathQueue::<u64>::with_capacity(n).capacity(), rows);
         }
     }
 }

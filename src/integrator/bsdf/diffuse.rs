@@ -1,0 +1,84 @@
+//! The ideal diffuse (Lambertian) model: BRDF `ρ/π` on both sides of the
+//! surface.
+
+use super::BsdfSample;
+use crate::math::{Real, V3, sin_cos_2pi};
+
+/// The report's sampling routine: a direction uniform on the hemisphere of
+/// `n` (pdf `1/2π`), from two uniform numbers `u = [X1, X2]`, weighted for
+/// the BRDF value `f = ρ/π`. The cosine of the direction with `n` is `X1`
+/// by construction (see [`uniform_hemisphere`]).
+#[inline(always)]
+pub fn sample_uniform<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
+    BsdfSample {
+        wi: uniform_hemisphere(n, u[0], u[1]),
+        f,
+        // Exactly X1: dot(wi, n) equals it only up to rounding, which can
+        // make it -1e-7 and a sample negative.
+        cos: u[0],
+        pdf: R::splat(1.0 / (2.0 * std::f32::consts::PI)),
+    }
+}
+
+/// A direction on the hemisphere around unit normal `n`, uniform in solid
+/// angle (pdf `1/2π`), from two uniform numbers — the report's method.
+///
+/// In the local frame with `n` as the y axis: `cos θ = X1`,
+/// `sin θ = sqrt(1 - X1²)`, `φ = 2π·X2`,
+/// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`. The frame around `n` is
+/// Scratchapixel's (the report's reference \[3\]): a tangent `nt` orthogonal
+/// to `n` built from its two largest components, and `nb = n × nt`.
+#[inline(always)]
+pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
+    let sin_theta = (-x1).mul_add(x1, R::splat(1.0)).sqrt();
+    let (sin_phi, cos_phi) = sin_cos_2pi(x2);
+    let (lx, ly, lz) = (sin_theta * cos_phi, x1, sin_theta * sin_phi);
+
+    let zero = R::splat(0.0);
+    let use_x = n.y.abs().lt(n.x.abs());
+    let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
+    let inv_yz = R::splat(1.0) / (n.y * n.y + n.z * n.z).sqrt();
+    let nt = V3::select(
+        use_x,
+        V3::new(n.z * inv_xz, zero, -n.x * inv_xz),
+        V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
+    );
+    let nb = n.cross(nt);
+    nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::sampler::PathRng;
+    use wide::f32x8;
+
+    #[test]
+    fn simd_hemisphere_equals_scalar_bitwise() {
+        let mut rng = PathRng::new(7, 3, 9);
+        for _ in 0..5_000 {
+            let ns: [glam::Vec3; 8] = std::array::from_fn(|_| {
+                let v = glam::Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                );
+                v.try_normalize().unwrap_or(glam::Vec3::Y)
+            });
+            let x1: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+            let x2: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+            let n8 = V3::new(
+                f32x8::from(ns.map(|n| n.x)),
+                f32x8::from(ns.map(|n| n.y)),
+                f32x8::from(ns.map(|n| n.z)),
+            );
+            let d8 = uniform_hemisphere(n8, f32x8::from(x1), f32x8::from(x2));
+            for l in 0..8 {
+                let d = uniform_hemisphere(V3::from(ns[l]), x1[l], x2[l]);
+                assert_eq!(d.x.to_bits(), d8.x.to_array()[l].to_bits());
+                assert_eq!(d.y.to_bits(), d8.y.to_array()[l].to_bits());
+                assert_eq!(d.z.to_bits(), d8.z.to_array()[l].to_bits());
+            }
+        }
+    }
+}
