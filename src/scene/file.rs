@@ -24,6 +24,10 @@ pub struct SceneError {
     pub field: Option<String>,
     /// What is wrong.
     pub message: String,
+    /// The mesh file's own error, when the problem is in a mesh the scene
+    /// loads (`file` and `line` are then the mesh file's).
+    #[source]
+    pub mesh: Option<super::obj::ObjError>,
 }
 
 impl fmt::Display for SceneError {
@@ -167,6 +171,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let at = |span: std::ops::Range<usize>, field: &str, message: String| {
         let (line, column) = line_col(text, span.start);
         SceneError {
+            mesh: None,
             file: file.to_string(),
             line,
             column,
@@ -177,6 +182,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let raw: SceneFile = toml::from_str(text).map_err(|e| {
         let (line, column) = e.span().map_or((0, 0), |s| line_col(text, s.start));
         SceneError {
+            mesh: None,
             file: file.to_string(),
             line,
             column,
@@ -431,6 +437,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         let obj = super::obj::load(&path, with_mtl).map_err(|e| {
             let (line, column) = line_col(text, m.file.span().start);
             SceneError {
+                mesh: Some(e.clone()),
                 file: e.file.display().to_string(),
                 line: e.line,
                 column: if e.line > 0 { 1 } else { 0 },
@@ -566,6 +573,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
 
     if triangles.is_empty() {
         return Err(SceneError {
+            mesh: None,
             file: file.to_string(),
             line: 0,
             column: 0,

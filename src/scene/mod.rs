@@ -91,6 +91,7 @@ impl Scene {
     /// Read a scene from a TOML file.
     pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            mesh: None,
             file: path.display().to_string(),
             line: 0,
             column: 0,
