@@ -27,7 +27,7 @@ pub struct SceneError {
     /// The mesh file's own error, when the problem is in a mesh the scene
     /// loads (`file` and `line` are then the mesh file's).
     #[source]
-    pub mesh: Option<super::obj::ObjError>,
+    pub mesh: Option<Box<super::obj::ObjError>>,
 }
 
 impl fmt::Display for SceneError {
@@ -437,7 +437,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         let obj = super::obj::load(&path, with_mtl).map_err(|e| {
             let (line, column) = line_col(text, m.file.span().start);
             SceneError {
-                mesh: Some(e.clone()),
+                mesh: Some(Box::new(e.clone())),
                 file: e.file.display().to_string(),
                 line: e.line,
                 column: if e.line > 0 { 1 } else { 0 },
