@@ -20,6 +20,57 @@ pub fn sample_uniform<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
     }
 }
 
+/// Cosine-weighted sampling: a direction on the hemisphere of `n` with
+/// density `cos θ / π`, from two uniform numbers (Malley's method: a point
+/// of the unit disk, by Shirley and Chiu's concentric map, lifted to the
+/// hemisphere), weighted for the BRDF value `f = ρ/π`.
+#[inline(always)]
+pub fn sample_cosine<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
+    let (one, zero) = (R::splat(1.0), R::splat(0.0));
+    // The square [-1, 1]² to the unit disk: (r, φ) by wedges.
+    let a = u[0].mul_add(R::splat(2.0), -one);
+    let b = u[1].mul_add(R::splat(2.0), -one);
+    let wide = b.abs().lt(a.abs());
+    let r = R::select(wide, a, b);
+    // φ / 2π: (b/a)/8 in the wedges around ±x, 1/4 - (a/b)/8 around ±y.
+    let safe = |x: R| R::select(x.eq(zero), one, x);
+    let turn = R::select(
+        wide,
+        b / safe(a) * R::splat(0.125),
+        R::splat(0.25) - a / safe(b) * R::splat(0.125),
+    );
+    let (sin_phi, cos_phi) = sin_cos_2pi(turn);
+    let (dx, dz) = (r * cos_phi, r * sin_phi);
+    let cos = (-dx).mul_add(dx, (-dz).mul_add(dz, one));
+    let cos = R::select(cos.lt(zero), zero, cos).sqrt();
+    BsdfSample {
+        wi: to_world(n, dx, cos, dz),
+        f,
+        cos,
+        pdf: cos * R::splat(std::f32::consts::FRAC_1_PI),
+    }
+}
+
+/// The diffuse BRDF `f = ρ/π` (given as `f`) for the direction `wi`, with
+/// `n` the normal facing the incoming ray: `(f · cos θ, cos θ)` on that
+/// side, zero on the other (diffuse reflection never transmits).
+#[inline(always)]
+pub fn eval<R: Real>(n: V3<R>, f: V3<R>, wi: V3<R>) -> (V3<R>, R) {
+    let zero = R::splat(0.0);
+    let cos = n.dot(wi);
+    let cos = R::select(cos.lt(zero), zero, cos);
+    (f.scale(cos), cos)
+}
+
+/// The density of [`sample_cosine`] for the direction `wi` (`n` the
+/// normal facing the incoming ray): `max(0, cos θ) / π`.
+#[inline(always)]
+pub fn pdf_cosine<R: Real>(n: V3<R>, wi: V3<R>) -> R {
+    let zero = R::splat(0.0);
+    let cos = n.dot(wi);
+    R::select(cos.lt(zero), zero, cos) * R::splat(std::f32::consts::FRAC_1_PI)
+}
+
 /// A direction on the hemisphere around unit normal `n`, uniform in solid
 /// angle (pdf `1/2π`), from two uniform numbers — the report's method.
 ///
@@ -32,8 +83,16 @@ pub fn sample_uniform<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
 pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
     let sin_theta = (-x1).mul_add(x1, R::splat(1.0)).sqrt();
     let (sin_phi, cos_phi) = sin_cos_2pi(x2);
-    let (lx, ly, lz) = (sin_theta * cos_phi, x1, sin_theta * sin_phi);
+    to_world(n, sin_theta * cos_phi, x1, sin_theta * sin_phi)
+}
 
+/// The direction with coordinates `(lx, ly, lz)` in the frame of unit
+/// normal `n` (its y axis). The frame is Scratchapixel's (the report's
+/// reference \[3\]): a tangent `nt` orthogonal to `n` built from its two
+/// largest components, and `nb = n × nt`; the direction is
+/// `nb·lx + n·ly + nt·lz`.
+#[inline(always)]
+pub fn to_world<R: Real>(n: V3<R>, lx: R, ly: R, lz: R) -> V3<R> {
     let zero = R::splat(0.0);
     let use_x = n.y.abs().lt(n.x.abs());
     let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
