@@ -3,6 +3,7 @@
 use crate::accel::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum};
+use crate::integrator::nee::Estimator;
 use crate::integrator::reference::ReferenceTracer;
 use crate::integrator::sampler::{Independent, Sampler};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
@@ -114,6 +115,15 @@ impl RenderSettings {
         }
     }
 
+    /// How paths are traced: the integrator, the depth, Russian roulette.
+    pub fn estimator(&self) -> Estimator {
+        Estimator {
+            integrator: self.integrator,
+            max_depth: self.max_depth,
+            rr_depth: self.rr_depth,
+        }
+    }
+
     /// The report's estimator exactly as the seed wrote it: uniform
     /// hemisphere directions, independent numbers, no Russian roulette.
     pub fn report(mut self) -> Self {
@@ -219,14 +229,14 @@ impl Renderer {
             })?;
         // One hierarchy, built on the render's threads, shared by the engine.
         let bvh = Arc::new(pool.install(|| Bvh::build(&crate::accel::scene_triangles(scene))));
+        let estimator = settings.estimator();
         let engine = match settings.engine {
-            Engine::Reference => EngineState::Reference(ReferenceTracer::with_bvh(
-                scene,
-                settings.max_depth,
-                bvh.clone(),
-            )),
+            Engine::Reference => EngineState::Reference(
+                ReferenceTracer::with_bvh(scene, settings.max_depth, bvh.clone())
+                    .with_estimator(estimator),
+            ),
             Engine::Wavefront => {
-                EngineState::Wavefront(WavefrontEngine::new(scene, settings.max_depth, bvh.clone()))
+                EngineState::Wavefront(WavefrontEngine::new(scene, estimator, bvh.clone()))
             }
         };
         let frame = Frame {

@@ -7,9 +7,11 @@ mod common;
 use common::TempDir;
 use glam::Vec3;
 use std::path::Path;
+use wavetrace::integrator::Counters;
+use wavetrace::integrator::nee::Estimator;
 use wavetrace::integrator::reference::ReferenceTracer;
 use wavetrace::integrator::sampler::Independent;
-use wavetrace::scene::{Scene, SceneError};
+use wavetrace::scene::{Integrator, Scene, SceneError};
 
 const HEADER: &str = r#"
 [camera]
@@ -318,23 +320,33 @@ fn reference_bvh_and_brute_force_render_the_same_bits() {
     );
     let s = load(&d, &[], &body).unwrap();
     let camera = s.camera.for_resolution(24, 24);
-    let bvh = ReferenceTracer::new(&s, 4);
-    let brute = ReferenceTracer::with_brute_force(&s, 4);
-    assert!(bvh.bvh().is_some() && brute.bvh().is_none());
-    let (mut r1, mut r2) = (0, 0);
-    for y in 0..24 {
-        for x in 0..24 {
-            for k in 0..4 {
-                let a = bvh.sample(&camera, &Independent::new(9), (x, y), k, &mut r1);
-                let b = brute.sample(&camera, &Independent::new(9), (x, y), k, &mut r2);
-                assert_eq!(
-                    a.to_array().map(f32::to_bits),
-                    b.to_array().map(f32::to_bits)
-                );
+    // Every estimator: next-event estimation's shadow rays go through the
+    // hierarchy (or brute force) too.
+    for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
+        let estimator = Estimator {
+            integrator,
+            max_depth: 4,
+            rr_depth: None,
+        };
+        let bvh = ReferenceTracer::new(&s, 4).with_estimator(estimator);
+        let brute = ReferenceTracer::with_brute_force(&s, 4).with_estimator(estimator);
+        assert!(bvh.bvh().is_some() && brute.bvh().is_none());
+        let (mut c1, mut c2) = (Counters::default(), Counters::default());
+        for y in 0..24 {
+            for x in 0..24 {
+                for k in 0..4 {
+                    let a = bvh.sample(&camera, &Independent::new(9), (x, y), k, &mut c1);
+                    let b = brute.sample(&camera, &Independent::new(9), (x, y), k, &mut c2);
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits)
+                    );
+                }
             }
         }
+        assert_eq!(c1, c2);
+        assert_eq!(c1.shadow_rays > 0, integrator == Integrator::Nee);
     }
-    assert_eq!(r1, r2);
 }
 
 #[test]

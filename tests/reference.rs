@@ -16,10 +16,11 @@ mod common;
 
 use glam::Vec3;
 use wavetrace::film::{FIXED_POINT_SCALE, Film};
+use wavetrace::integrator::Counters;
 use wavetrace::integrator::reference::ReferenceTracer;
 use wavetrace::integrator::sampler::{Independent, PathRng, Sampler};
 use wavetrace::render::{Engine, RenderSettings, Renderer};
-use wavetrace::scene::{Scene, file};
+use wavetrace::scene::{Integrator, Scene, file};
 
 /// The Cornell light's radiance (shared/scenes/cornell-dh2323.json).
 const LIGHT: Vec3 = Vec3::splat(10.0);
@@ -29,9 +30,9 @@ const LIGHT_Y: f32 = -0.996_396_4;
 fn trace(tracer: &ReferenceTracer, o: Vec3, d: Vec3, seed: u32) -> (Vec3, u64) {
     let sampler = Independent::new(42);
     let mut path = sampler.start(seed, 0);
-    let mut rays = 0;
-    let l = tracer.trace_path(&sampler, &mut path, (o, d.normalize()), 0, &mut rays);
-    (l, rays)
+    let mut counters = Counters::default();
+    let l = tracer.trace_path(&sampler, &mut path, (o, d.normalize()), 0, &mut counters);
+    (l, counters.rays)
 }
 
 fn bits(v: Vec3) -> [u32; 3] {
@@ -230,25 +231,30 @@ fn furnace(reflectance: [f32; 3], emission: [f32; 3]) -> Scene {
     scene
 }
 
+/// Every integrator.
+const INTEGRATORS: [Integrator; 3] = [Integrator::Report, Integrator::Bsdf, Integrator::Nee];
+
 /// Renders `scene` at 1 sample per pixel, max depth `depth`, with the
-/// reference tracer; returns its film and the numbers of paths and rays.
+/// reference tracer and `integrator`; returns its film and its counters.
 /// The wavefront engine renders it too and must trace the same paths: the
 /// same counts, and every pixel within 1e-5 (relative) of the reference.
-fn render(scene: &Scene, depth: u32, seed: u64) -> (Film, u64, u64) {
+fn render(scene: &Scene, depth: u32, seed: u64, integrator: Integrator) -> (Film, Counters) {
     let run = |engine| {
         let mut settings = RenderSettings::for_scene(scene);
+        settings.integrator = integrator;
         settings.spp = 1;
         settings.max_depth = depth;
         settings.seed = seed;
         settings.threads = 2;
         settings.engine = engine;
-        let (film, counters, _) = Renderer::new(scene, &settings).unwrap().render();
+        let (film, mut counters, _) = Renderer::new(scene, &settings).unwrap().render();
         assert_eq!(film.invalid_samples, 0);
-        (film, counters.paths, counters.rays)
+        counters.stages = Default::default();
+        (film, counters)
     };
     let reference = run(Engine::Reference);
     let wavefront = run(Engine::Wavefront);
-    assert_eq!((reference.1, reference.2), (wavefront.1, wavefront.2));
+    assert_eq!(reference.1, wavefront.1, "{integrator:?}");
     for (a, b) in reference.0.to_rgb().iter().zip(wavefront.0.to_rgb()) {
         for c in 0..3 {
             assert!((a[c] - b[c]).abs() <= 1e-5 * a[c].abs().max(b[c].abs()) + 1e-6);
@@ -257,46 +263,75 @@ fn render(scene: &Scene, depth: u32, seed: u64) -> (Film, u64, u64) {
     reference
 }
 
-/// Checks the furnace's per-channel mean against `E·Σ a^k (k < depth)`,
-/// and every sample against `[E, E·Σ (2a)^k]` (cos θ ∈ [0, 1], pdf 1/2π).
+/// Checks the furnace's per-channel mean against `E·Σ a^k (k < depth)`
+/// for every integrator, and every sample against what the estimator can
+/// give: within `[E, E·Σ (2a)^k]` for the report's (cos θ ∈ [0, 1], pdf
+/// 1/2π); exactly the mean for `bsdf` (cosine sampling of a diffuse BRDF
+/// weighs every bounce by exactly `a`), save paths that escape; at least
+/// `E` for `nee` (the camera ray's emission is never weighted).
 fn check_furnace(a: [f32; 3], e: [f32; 3], depth: u32, seed: u64) {
     let scene = furnace(a, e);
-    let (film, paths, rays) = render(&scene, depth, seed);
-    let n = film.sums.len();
-    assert_eq!(paths, n as u64);
-    // Closed: every path should bounce to the full depth. A few do not: a
-    // ray that leaves a surface within the ray epsilon (1e-4) of an edge,
-    // heading into the neighbouring face, skips that face (its hit is at
-    // t < epsilon) and leaves the cube through the gap (about 2 rays in 10^4
-    // here). A known limit of the epsilon offset, bounded here so that a
-    // real leak (a larger epsilon, a crack in the intersection) fails.
-    let full = paths * depth as u64;
-    assert!(
-        rays <= full && (full - rays) * 1000 <= full,
-        "{} of {full} rays escaped the closed furnace",
-        full - rays
-    );
-    let pixels = film.to_rgb();
-    for c in 0..3 {
-        let (a, e) = (a[c] as f64, e[c] as f64);
-        let expected: f64 = (0..depth).map(|k| e * a.powi(k as i32)).sum();
-        let upper: f64 = (0..depth).map(|k| e * (2.0 * a).powi(k as i32)).sum();
-        let xs: Vec<f64> = pixels.iter().map(|p| p[c] as f64).collect();
-        for &x in &xs {
+    for integrator in INTEGRATORS {
+        let (film, counters) = render(&scene, depth, seed, integrator);
+        let n = film.sums.len();
+        assert_eq!(counters.paths, n as u64);
+        // Closed: every path should bounce to the full depth. A few do not:
+        // a ray that leaves a surface within the ray epsilon (1e-4) of an
+        // edge, heading into the neighbouring face, skips that face (its
+        // hit is at t < epsilon) and leaves the cube through the gap (about
+        // 2 rays in 10^4 here). A known limit of the epsilon offset,
+        // bounded here so that a real leak (a larger epsilon, a crack in
+        // the intersection) fails.
+        let full = counters.paths * depth as u64;
+        let rays = counters.rays - counters.shadow_rays;
+        assert!(
+            rays <= full && (full - rays) * 1000 <= full,
+            "{integrator:?}: {} of {full} rays escaped the closed furnace",
+            full - rays
+        );
+        // Next-event estimation: a shadow ray from every vertex but the
+        // last, save those towards a point in the vertex's own plane.
+        let shadow_max = counters.paths * (depth as u64 - 1);
+        match integrator {
+            Integrator::Nee => assert!(
+                counters.shadow_rays <= shadow_max && counters.shadow_rays * 2 >= shadow_max,
+                "{} shadow rays of at most {shadow_max}",
+                counters.shadow_rays
+            ),
+            _ => assert_eq!(counters.shadow_rays, 0),
+        }
+        let pixels = film.to_rgb();
+        for c in 0..3 {
+            let (a, e) = (a[c] as f64, e[c] as f64);
+            let expected: f64 = (0..depth).map(|k| e * a.powi(k as i32)).sum();
+            let upper: f64 = (0..depth).map(|k| e * (2.0 * a).powi(k as i32)).sum();
+            let xs: Vec<f64> = pixels.iter().map(|p| p[c] as f64).collect();
+            let mut off = 0;
+            for &x in &xs {
+                assert!(
+                    x >= e * (1.0 - 1e-6),
+                    "{integrator:?} channel {c}, depth {depth}: sample {x} below {e}"
+                );
+                match integrator {
+                    Integrator::Report => assert!(
+                        x <= upper * (1.0 + 1e-5),
+                        "channel {c}, depth {depth}: sample {x} above {upper}"
+                    ),
+                    Integrator::Bsdf => off += ((x - expected).abs() > 1e-5 * expected) as usize,
+                    Integrator::Nee => {}
+                }
+            }
+            assert!(off * 1000 <= xs.len(), "bsdf: {off} samples off the mean");
+            let mean = xs.iter().sum::<f64>() / n as f64;
+            let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+            let se = (var / n as f64).sqrt().max(1e-6 * expected);
             assert!(
-                x >= e * (1.0 - 1e-6) && x <= upper * (1.0 + 1e-5),
-                "channel {c}, depth {depth}: sample {x} outside [{e}, {upper}]"
+                (mean - expected).abs() <= 5.0 * se,
+                "{integrator:?} channel {c} (a = {a}, E = {e}), depth {depth}: mean {mean}, \
+                 expected {expected} ± {} (5 standard errors)",
+                5.0 * se
             );
         }
-        let mean = xs.iter().sum::<f64>() / n as f64;
-        let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-        let se = (var / n as f64).sqrt();
-        assert!(
-            (mean - expected).abs() <= 5.0 * se,
-            "channel {c} (a = {a}, E = {e}), depth {depth}: mean {mean}, \
-             expected {expected} ± {} (5 standard errors)",
-            5.0 * se
-        );
     }
 }
 
@@ -304,14 +339,16 @@ fn check_furnace(a: [f32; 3], e: [f32; 3], depth: u32, seed: u64) {
 fn furnace_depth_1_is_exactly_the_emission() {
     let e = [1.0, 0.5, 2.25];
     let scene = furnace([0.25, 0.5, 0.8], e);
-    let (film, paths, rays) = render(&scene, 1, 1);
-    assert_eq!(rays, paths);
-    for (i, s) in film.sums.iter().enumerate() {
-        let want = e.map(|c| (c as f64 * FIXED_POINT_SCALE) as u128);
-        assert_eq!(*s, want, "pixel {i}");
-    }
-    for p in film.to_rgb() {
-        assert_eq!(p, e);
+    for integrator in INTEGRATORS {
+        let (film, counters) = render(&scene, 1, 1, integrator);
+        assert_eq!(counters.rays, counters.paths);
+        for (i, s) in film.sums.iter().enumerate() {
+            let want = e.map(|c| (c as f64 * FIXED_POINT_SCALE) as u128);
+            assert_eq!(*s, want, "pixel {i}");
+        }
+        for p in film.to_rgb() {
+            assert_eq!(p, e);
+        }
     }
 }
 
@@ -352,8 +389,10 @@ fn a_scene_without_emission_renders_exactly_black() {
     }
     // The same furnace: a closed box with no emission is black too.
     let scene = furnace([1.0; 3], [0.0; 3]);
-    let (film, _, _) = render(&scene, 3, 1);
-    assert!(film.sums.iter().all(|s| *s == [0; 3]));
+    for integrator in INTEGRATORS {
+        let (film, _) = render(&scene, 3, 1, integrator);
+        assert!(film.sums.iter().all(|s| *s == [0; 3]));
+    }
 }
 
 #[test]
@@ -363,12 +402,15 @@ fn the_lit_cornell_box_is_not_black() {
     // pixels looking at the light hold exactly 10 at depth 1.
     let scene = Scene::cornell();
     for engine in [Engine::Reference, Engine::Wavefront] {
-        lit_cornell_box_at_depth_1(&scene, engine);
+        for integrator in INTEGRATORS {
+            lit_cornell_box_at_depth_1(&scene, engine, integrator);
+        }
     }
 }
 
-fn lit_cornell_box_at_depth_1(scene: &Scene, engine: Engine) {
+fn lit_cornell_box_at_depth_1(scene: &Scene, engine: Engine, integrator: Integrator) {
     let mut settings = common::settings(scene, 24, 24, 4);
+    settings.integrator = integrator;
     settings.max_depth = 1;
     settings.threads = 2;
     settings.engine = engine;

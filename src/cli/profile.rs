@@ -27,6 +27,12 @@ pub struct Profile {
     pub seed: Option<u64>,
     /// Engine name.
     pub engine: Option<String>,
+    /// Integrator name (report, bsdf, nee).
+    pub integrator: Option<String>,
+    /// Sampler name (independent, sobol).
+    pub sampler: Option<String>,
+    /// Russian roulette from this depth on.
+    pub rr_depth: Option<u32>,
 }
 
 /// The built-in profiles: name and TOML text.

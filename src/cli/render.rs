@@ -10,7 +10,7 @@ use crate::output::{check_output_format, check_partial_path, write_output};
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::run::session::{Interrupt, Session, SessionOptions, Stop};
 use crate::run::shard::{SampleRequest, SampleWork, ShardSpec, parse_samples};
-use crate::scene::Scene;
+use crate::scene::{Integrator, SamplerKind, Scene};
 use clap::Args;
 use std::io::{IsTerminal, Write};
 use std::ops::Range;
@@ -47,8 +47,22 @@ pub struct RenderArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Path tracer.
-    #[arg(long, value_parser = engine_parser())]
+    #[arg(long, value_parser = named(Engine::NAMES, |n| Engine::from_name(n).ok()))]
     pub engine: Option<Engine>,
+    /// Estimator: report (the seed's: uniform hemisphere, no light
+    /// sampling), bsdf (cosine-weighted), nee (next-event estimation with
+    /// multiple importance sampling) [default: nee].
+    #[arg(long, value_parser = named(Integrator::NAMES, Integrator::from_name))]
+    pub integrator: Option<Integrator>,
+    /// Where the numbers come from: independent (PCG streams) or sobol
+    /// (Owen-scrambled Sobol points).
+    #[arg(long, value_parser = named(SamplerKind::NAMES, SamplerKind::from_name))]
+    pub sampler: Option<SamplerKind>,
+    /// Russian roulette may end paths at vertices of this depth and deeper
+    /// (the camera ray's hit is depth 0); off by default, never with
+    /// --integrator report.
+    #[arg(long, value_name = "D")]
+    pub rr_depth: Option<u32>,
     /// Paths per wavefront batch [default: 4096]. A tuning knob for
     /// benchmarks: it never changes the image.
     #[arg(long, value_name = "PATHS")]
@@ -95,11 +109,15 @@ pub struct RenderArgs {
     pub farm: FarmArgs,
 }
 
-/// `--engine`: one of [`Engine::NAMES`].
-fn engine_parser() -> impl clap::builder::TypedValueParser<Value = Engine> {
+/// A flag whose value is one of `names`, turned into a `T` by `from_name`
+/// (`--help` lists the names).
+fn named<T: Clone + Send + Sync + 'static>(
+    names: &'static [&'static str],
+    from_name: fn(&str) -> Option<T>,
+) -> impl clap::builder::TypedValueParser<Value = T> {
     use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(Engine::NAMES)
-        .map(|name: String| Engine::from_name(&name).expect("a possible value"))
+    clap::builder::PossibleValuesParser::new(names)
+        .map(move |name: String| from_name(&name).expect("one of the possible values"))
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
@@ -208,6 +226,23 @@ fn plan(args: RenderArgs) -> Result<Job> {
         None => crate::run::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
+    let named = |name: &Option<String>, what: &str, known: &[&str]| match name {
+        Some(n) if !known.contains(&n.as_str()) => Err(Error::Settings(format!(
+            "profile: unknown {what} {n:?} (known: {})",
+            known.join(", ")
+        ))),
+        _ => Ok(name.clone()),
+    };
+    let profile_integrator = named(&profile.integrator, "integrator", Integrator::NAMES)?
+        .and_then(|n| Integrator::from_name(&n));
+    let profile_sampler = named(&profile.sampler, "sampler", SamplerKind::NAMES)?
+        .and_then(|n| SamplerKind::from_name(&n));
+    settings.integrator = args
+        .integrator
+        .or(profile_integrator)
+        .unwrap_or(settings.integrator);
+    settings.sampler = args.sampler.or(profile_sampler).unwrap_or(settings.sampler);
+    settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.validate()?;
     let work = args.farm.request().resolve(settings.spp, &env)?;
@@ -497,6 +532,9 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         seed: s.seed,
         threads: s.threads,
         engine: s.engine.name(),
+        integrator: s.integrator.name(),
+        sampler: s.sampler.name(),
+        rr_depth: s.rr_depth,
         stop: report.stop.name(),
         time_limit_seconds: job.session.time_limit.map(|d| d.as_secs_f64()),
         passes: report.passes,
@@ -546,13 +584,17 @@ fn describe(job: &Job) -> String {
         None => String::new(),
     };
     format!(
-        "{} at {}x{}, {} spp{}, max depth {}, seed {}, {} thread(s), {} engine{resume} -> {}",
+        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine{resume} -> {}",
         job.scene.name,
         s.width,
         s.height,
         s.spp,
         range_note(&job.work, s.spp),
         s.max_depth,
+        s.integrator.name(),
+        s.rr_depth
+            .map_or(String::new(), |d| format!(" (roulette from depth {d})")),
+        s.sampler.name(),
         s.seed,
         s.threads,
         s.engine.name(),

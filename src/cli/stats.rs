@@ -45,6 +45,12 @@ pub struct RenderStats {
     pub threads: usize,
     /// Engine name.
     pub engine: &'static str,
+    /// Integrator name.
+    pub integrator: &'static str,
+    /// Sampler name.
+    pub sampler: &'static str,
+    /// The depth from which Russian roulette may end paths, if it may.
+    pub rr_depth: Option<u32>,
     /// Why the render stopped: "complete", "time-limit", "SIGINT" or
     /// "SIGTERM".
     pub stop: &'static str,
@@ -63,7 +69,7 @@ pub struct RenderStats {
     pub elapsed_seconds: f64,
     /// Camera paths traced by this run.
     pub paths: u64,
-    /// Rays cast (closest-hit queries) by this run.
+    /// Rays cast by this run: closest-hit queries and shadow rays.
     pub rays: u64,
     /// `rays / seconds`.
     pub rays_per_second: f64,

@@ -104,10 +104,14 @@ impl Lights {
             return None;
         }
         // The first emitter whose running sum exceeds `pick`.
-        let k = self.cdf.partition_point(|&c| c <= pick).min(self.cdf.len() - 1);
+        let k = self
+            .cdf
+            .partition_point(|&c| c <= pick)
+            .min(self.cdf.len() - 1);
         let [b1, b2] = square_to_triangle(u);
         let point = Vec3::from(
-            V3::from(self.e1[k]).mul_add(b1, V3::from(self.e2[k]).mul_add(b2, V3::from(self.v0[k]))),
+            V3::from(self.e1[k])
+                .mul_add(b1, V3::from(self.e2[k]).mul_add(b2, V3::from(self.v0[k]))),
         );
         Some(LightSample {
             point,

@@ -15,6 +15,7 @@
 
 pub mod bsdf;
 pub mod lights;
+pub mod nee;
 pub mod reference;
 pub mod sampler;
 pub mod wavefront;
@@ -76,17 +77,23 @@ pub enum Stage {
     Shade,
     /// Finished paths added to the film, and dropped from the queue.
     Retire,
+    /// Next-event estimation: points on emitters, and shadow rays to them.
+    Light,
+    /// Occlusion of the shadow rays; the light of those that arrive.
+    Shadow,
     /// Next directions and throughputs.
     Bounce,
 }
 
 impl Stage {
     /// Every stage, in order.
-    pub const ALL: [Stage; 5] = [
+    pub const ALL: [Stage; 7] = [
         Stage::Generate,
         Stage::Intersect,
         Stage::Shade,
         Stage::Retire,
+        Stage::Light,
+        Stage::Shadow,
         Stage::Bounce,
     ];
 
@@ -97,6 +104,8 @@ impl Stage {
             Stage::Intersect => "intersect",
             Stage::Shade => "shade",
             Stage::Retire => "retire",
+            Stage::Light => "light",
+            Stage::Shadow => "shadow",
             Stage::Bounce => "bounce",
         }
     }
@@ -144,8 +153,10 @@ impl std::ops::AddAssign for StageSeconds {
 pub struct Counters {
     /// Camera paths traced.
     pub paths: u64,
-    /// Rays cast (closest-hit queries).
+    /// Rays cast: closest-hit queries and shadow rays.
     pub rays: u64,
+    /// Of those, the shadow rays of next-event estimation.
+    pub shadow_rays: u64,
     /// Samples refused as NaN, infinite or negative.
     pub invalid_samples: u64,
     /// Time per wavefront stage (zero for the reference engine).
@@ -156,6 +167,7 @@ impl std::ops::AddAssign for Counters {
     fn add_assign(&mut self, o: Self) {
         self.paths += o.paths;
         self.rays += o.rays;
+        self.shadow_rays += o.shadow_rays;
         self.invalid_samples += o.invalid_samples;
         self.stages += o.stages;
     }

@@ -1,7 +1,7 @@
 //! The reference tracer: the report's `TracePath`, recursive and scalar.
 //!
 //! This is the oracle the wavefront engine is tested against, so it stays as
-//! plain as the report's pseudocode:
+//! plain as the report's pseudocode. With the report's estimator:
 //!
 //! ```text
 //! tracePath(ray, depth):
@@ -10,6 +10,12 @@
 //!     new_ray = (hit point, uniform direction on the hemisphere of the normal)
 //!     return emittance + (reflectance/π) · tracePath(new_ray, depth+1) · cos θ / (1/2π)
 //! ```
+//!
+//! The other estimators ([`Integrator`]) add to it, in this order at each
+//! vertex: emission weighted by multiple importance sampling (`nee`);
+//! Russian roulette (with `--rr-depth`); a shadow ray to a point on an
+//! emitter (`nee`, when the shadow ray would not exceed the maximum depth);
+//! the BSDF-sampled direction (cosine-weighted for `bsdf` and `nee`).
 //!
 //! Emission is one-sided (towards the triangle's front); reflection is
 //! two-sided (the hemisphere is the one the incoming ray came from).
@@ -21,9 +27,12 @@ use crate::accel::bvh::Bvh;
 use crate::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
 use crate::film::accumulate;
 use crate::integrator::bsdf::{diffuse, facing};
+use crate::integrator::lights::Lights;
+use crate::integrator::nee::{Estimator, connect, emission_weight, survival as survival_of};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
+use crate::scene::Integrator;
 use crate::scene::Scene;
 use crate::scene::camera::RasterCamera;
 use glam::Vec3;
@@ -43,12 +52,14 @@ pub struct ReferenceTracer {
     scene: Scene,
     accel: Accel,
     epsilon: f32,
-    max_depth: u32,
+    estimator: Estimator,
+    lights: Lights,
 }
 
 impl ReferenceTracer {
-    /// A tracer for `scene` that follows paths to `max_depth`, over a
-    /// [`Bvh`] built here (on the current rayon pool).
+    /// A tracer of the report's estimator for `scene`, following paths to
+    /// `max_depth`, over a [`Bvh`] built here (on the current rayon pool).
+    /// [`with_estimator`](Self::with_estimator) picks another estimator.
     pub fn new(scene: &Scene, max_depth: u32) -> Self {
         Self::with_bvh(
             scene,
@@ -78,8 +89,15 @@ impl ReferenceTracer {
             accel,
             epsilon: scene.ray_epsilon(),
             scene: scene.clone(),
-            max_depth,
+            estimator: Estimator::report(max_depth),
+            lights: Lights::new(scene),
         }
+    }
+
+    /// The same tracer with another estimator.
+    pub fn with_estimator(mut self, estimator: Estimator) -> Self {
+        self.estimator = estimator;
+        self
     }
 
     /// The hierarchy this tracer uses, if any (not in brute-force mode).
@@ -93,27 +111,47 @@ impl ReferenceTracer {
     /// The closest hit of the ray `o + t·d` beyond the scene's epsilon.
     #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3) -> Option<Hit> {
+        self.closest_hit_before(o, d, f32::INFINITY)
+    }
+
+    fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         match &self.accel {
-            Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, f32::INFINITY),
-            Accel::BruteForce(e) => closest_hit_brute_force(e, o, d, self.epsilon, f32::INFINITY),
+            Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, t_max),
+            Accel::BruteForce(e) => closest_hit_brute_force(e, o, d, self.epsilon, t_max),
         }
     }
 
     /// The radiance arriving at `o` from direction `-d`, for a ray at
     /// `depth` (camera rays are depth 0), with the path's numbers drawn
-    /// from `sampler` at `path`. `rays` counts the rays cast.
+    /// from `sampler` at `path`. `counters` counts the rays cast.
     pub fn trace_path<S: Sampler>(
+        &self,
+        sampler: &S,
+        path: &mut S::Path,
+        ray: (Vec3, Vec3),
+        depth: u32,
+        counters: &mut Counters,
+    ) -> Vec3 {
+        self.trace(sampler, path, ray, depth, (0.0, Vec3::ONE), counters)
+    }
+
+    /// [`trace_path`](Self::trace_path) for a ray drawn with density
+    /// `bsdf_pdf` (0 for camera rays), by a path of throughput `beta` so
+    /// far (what Russian roulette looks at).
+    fn trace<S: Sampler>(
         &self,
         sampler: &S,
         path: &mut S::Path,
         (o, d): (Vec3, Vec3),
         depth: u32,
-        rays: &mut u64,
+        (bsdf_pdf, beta): (f32, Vec3),
+        counters: &mut Counters,
     ) -> Vec3 {
-        if depth >= self.max_depth {
+        let est = &self.estimator;
+        if depth >= est.max_depth {
             return Vec3::ZERO;
         }
-        *rays += 1;
+        counters.rays += 1;
         let Some(hit) = self.closest_hit(o, d) else {
             return Vec3::ZERO;
         };
@@ -122,19 +160,69 @@ impl ReferenceTracer {
 
         // Seen from the front, the surface emits; either side reflects.
         let (front, normal) = facing(V3::from(triangle.normal), V3::from(d));
-        let emittance = if front { material.emission } else { Vec3::ZERO };
+        let mut radiance = if front {
+            let cos_light = -triangle.normal.dot(d);
+            let w = emission_weight(est, &self.lights, bsdf_pdf, hit.triangle, hit.t, cos_light);
+            material.emission * w
+        } else {
+            Vec3::ZERO
+        };
+        if depth + 1 >= est.max_depth {
+            return radiance; // the next ray would exceed the maximum depth
+        }
 
-        let new_origin = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-        let brdf = V3::from(material.reflectance / PI);
-        let s = diffuse::sample_uniform(normal, brdf, sampler.next_2d(path));
-        let incoming = self.trace_path(
+        let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
+        let brdf = material.reflectance / PI;
+        let mut beta = beta;
+        let mut survival = 1.0;
+        if est.roulette_at(depth) {
+            survival = survival_of(beta);
+            if sampler.next(path) >= survival {
+                return radiance;
+            }
+            beta /= survival;
+        }
+        if est.samples_lights() {
+            let pick = sampler.next(path);
+            let u = sampler.next_2d(path);
+            if let Some(shadow) = connect(
+                &self.lights,
+                self.epsilon,
+                p,
+                Vec3::from(normal),
+                brdf,
+                pick,
+                u,
+            ) {
+                counters.rays += 1;
+                counters.shadow_rays += 1;
+                if self
+                    .closest_hit_before(p, shadow.dir, shadow.t_max)
+                    .is_none()
+                {
+                    radiance += shadow.radiance / survival;
+                }
+            }
+        }
+        let s = match est.integrator {
+            Integrator::Report => {
+                diffuse::sample_uniform(normal, V3::from(brdf), sampler.next_2d(path))
+            }
+            Integrator::Bsdf | Integrator::Nee => {
+                let _lobe = sampler.next(path);
+                diffuse::sample_cosine(normal, V3::from(brdf), sampler.next_2d(path))
+            }
+        };
+        let next_beta = Vec3::from(s.weigh(V3::from(beta)));
+        let incoming = self.trace(
             sampler,
             path,
-            (new_origin, Vec3::from(s.wi)),
+            (p, Vec3::from(s.wi)),
             depth + 1,
-            rays,
+            (s.pdf, next_beta),
+            counters,
         );
-        emittance + Vec3::from(s.f) * incoming * s.cos / s.pdf
+        radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival
     }
 
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the
@@ -145,11 +233,11 @@ impl ReferenceTracer {
         sampler: &S,
         (x, y): (u32, u32),
         sample: u32,
-        rays: &mut u64,
+        counters: &mut Counters,
     ) -> Vec3 {
         let mut path = sampler.start(camera.pixel_index(x, y), sample);
         let ray = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
-        self.trace_path(sampler, &mut path, ray, 0, rays)
+        self.trace_path(sampler, &mut path, ray, 0, counters)
     }
 
     /// Render a tile: every sample of every pixel, one path at a time.
@@ -158,7 +246,7 @@ impl ReferenceTracer {
         for pixel in job.pixels.clone() {
             let xy = job.xy(pixel);
             for sample in job.samples.clone() {
-                let l = self.sample(&job.frame.camera, sampler, xy, sample, &mut c.rays);
+                let l = self.sample(&job.frame.camera, sampler, xy, sample, &mut c);
                 c.paths += 1;
                 if !accumulate(job.sum_of(pixel), l) {
                     c.invalid_samples += 1;

@@ -602,12 +602,20 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         Some(n) if !known.contains(&n.get_ref().as_str()) => Err(at(
             n.span(),
             field,
-            format!("unknown name {:?} (known: {})", n.get_ref(), known.join(", ")),
+            format!(
+                "unknown name {:?} (known: {})",
+                n.get_ref(),
+                known.join(", ")
+            ),
         )),
         _ => Ok(v.as_ref().map(|n| n.get_ref().clone())),
     };
     let integrator = named(&raw.integrator.name, "integrator.name", Integrator::NAMES)?;
-    let sampler = named(&raw.integrator.sampler, "integrator.sampler", SamplerKind::NAMES)?;
+    let sampler = named(
+        &raw.integrator.sampler,
+        "integrator.sampler",
+        SamplerKind::NAMES,
+    )?;
     let options = RenderOptions {
         integrator: integrator.and_then(|n| Integrator::from_name(&n)),
         sampler: sampler.and_then(|n| SamplerKind::from_name(&n)),

@@ -8,16 +8,21 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{diffuse, facing};
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
-use crate::scene::Model;
+use crate::scene::{Integrator, Model};
 use std::ops::Range;
 use wide::f32x8;
 
 /// Bounce every path in the queue (all live: retired rows are gone) off
 /// the surface it hit.
-pub fn bounce<S: Sampler>(queue: &mut PathQueue<S::Path>, sampler: &S, tables: &Tables) {
+pub fn bounce<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    sampler: &S,
+    tables: &Tables,
+    integrator: Integrator,
+) {
     for (model, rows) in bins(queue, tables) {
         match model {
-            Model::Diffuse => diffuse(queue, rows, sampler, tables),
+            Model::Diffuse => diffuse(queue, rows, sampler, tables, integrator),
         }
     }
 }
@@ -34,15 +39,20 @@ fn bins<P>(queue: &PathQueue<P>, tables: &Tables) -> Vec<(Model, Range<usize>)> 
 }
 
 /// Bounce the paths in rows `rows` off ideal diffuse surfaces, eight at a
-/// time: the new origin is the hit point, the new direction and the
-/// throughput's factor come from [`diffuse::sample_uniform`] (two numbers
-/// of the path), on the side of the surface the ray came from.
+/// time: the new origin is the hit point; the new direction and the
+/// throughput's factor come from [`diffuse::sample_uniform`] for the
+/// report's estimator (two numbers of the path), else from
+/// [`diffuse::sample_cosine`] (three numbers: a lobe choice, unused by the
+/// one lobe, and two for the direction), on the side of the surface the
+/// ray came from.
 pub fn diffuse<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     rows: Range<usize>,
     sampler: &S,
     tables: &Tables,
+    integrator: Integrator,
 ) {
+    let report = integrator == Integrator::Report;
     for i in rows.clone().step_by(8) {
         let lanes = (rows.end - i).min(8);
         // Lanes past the last path compute garbage that is stored past the
@@ -62,6 +72,9 @@ pub fn diffuse<S: Sampler>(
         );
         let (mut x1, mut x2) = ([0.0f32; 8], [0.0f32; 8]);
         for (l, path) in queue.sampler[i..i + lanes].iter_mut().enumerate() {
+            if !report {
+                let _lobe = sampler.next(path);
+            }
             [x1[l], x2[l]] = sampler.next_2d(path);
         }
         let load3 = |cols: &[Vec<f32>; 3]| {
@@ -74,12 +87,18 @@ pub fn diffuse<S: Sampler>(
 
         let (_, n) = facing(normal, d);
         let origin = hit_point(o, d, t);
-        let s = diffuse::sample_uniform(n, brdf, [f32x8::from(x1), f32x8::from(x2)]);
+        let u = [f32x8::from(x1), f32x8::from(x2)];
+        let s = if report {
+            diffuse::sample_uniform(n, brdf, u)
+        } else {
+            diffuse::sample_cosine(n, brdf, u)
+        };
         let beta = s.weigh(beta);
 
         store3(&mut queue.o, i, origin);
         store3(&mut queue.d, i, s.wi);
         store3(&mut queue.beta, i, beta);
+        store8(&mut queue.pdf, i, s.pdf);
     }
 }
 
@@ -133,7 +152,7 @@ mod tests {
         for n in 0..=17 {
             let before = queue(n, &sampler);
             let mut after = before.clone();
-            diffuse(&mut after, 0..n, &sampler, &tables);
+            diffuse(&mut after, 0..n, &sampler, &tables, Integrator::Report);
             for i in 0..n {
                 // The same row, bounced by the scalar (f32) routine.
                 let tri = before.hit[i] as usize;

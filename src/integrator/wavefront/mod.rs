@@ -5,9 +5,13 @@
 //!
 //! 1. *intersect*: the closest hit of every ray (8 triangles at a time);
 //! 2. *shade*: the emission each path sees;
-//! 3. *retire*: paths that escaped or reached the maximum depth go into
-//!    the film and leave the queue;
-//! 4. *bounce*: the live paths, grouped by material model, scatter: next
+//! 3. *retire*: paths that escaped, reached the maximum depth or lost at
+//!    Russian roulette go into the film and leave the queue;
+//! 4. *light* (next-event estimation only): a point on an emitter for
+//!    every live path, and a shadow ray towards it;
+//! 5. *shadow*: the shadow rays tested for occlusion; those that arrive
+//!    add their light;
+//! 6. *bounce*: the live paths, grouped by material model, scatter: next
 //!    direction and throughput, 8 paths at a time.
 //!
 //! Each stage is one file of this module and one [`Stage`] in the timings;
@@ -22,12 +26,16 @@
 pub(crate) mod bounce;
 pub(crate) mod generate;
 pub(crate) mod intersect;
+pub(crate) mod light;
 pub(crate) mod queue;
 pub(crate) mod retire;
 pub(crate) mod shade;
+pub(crate) mod shadow;
 pub(crate) mod tables;
 
 use crate::accel::bvh::Bvh;
+use crate::integrator::lights::Lights;
+use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::{Counters, Stage, TileJob};
 use crate::scene::Scene;
@@ -41,6 +49,7 @@ use tables::Tables;
 pub struct Scratch<P> {
     queue: PathQueue<P>,
     rays: intersect::RayBatch,
+    shadows: shadow::ShadowQueue,
 }
 
 impl<P: bytemuck::Pod> Scratch<P> {
@@ -49,6 +58,7 @@ impl<P: bytemuck::Pod> Scratch<P> {
         Self {
             queue: PathQueue::with_capacity(batch_size),
             rays: intersect::RayBatch::default(),
+            shadows: shadow::ShadowQueue::default(),
         }
     }
 }
@@ -56,18 +66,20 @@ impl<P: bytemuck::Pod> Scratch<P> {
 /// The wavefront path tracer.
 pub struct WavefrontEngine {
     tables: Tables,
+    lights: Lights,
     bvh: Arc<Bvh>,
-    max_depth: u32,
+    estimator: Estimator,
 }
 
 impl WavefrontEngine {
-    /// An engine for `scene` following paths to `max_depth`, tracing rays
-    /// against `bvh` (built from [`crate::accel::scene_triangles`]).
-    pub fn new(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
+    /// An engine for `scene` tracing paths by `estimator`, against `bvh`
+    /// (built from [`crate::accel::scene_triangles`]).
+    pub fn new(scene: &Scene, estimator: Estimator, bvh: Arc<Bvh>) -> Self {
         Self {
             tables: Tables::new(scene),
+            lights: Lights::new(scene),
             bvh,
-            max_depth,
+            estimator,
         }
     }
 
@@ -114,29 +126,46 @@ impl WavefrontEngine {
         (pixels, samples): (Range<u32>, Range<u32>),
         counters: &mut Counters,
     ) {
-        let Scratch { queue, rays } = scratch;
+        let Scratch {
+            queue,
+            rays,
+            shadows,
+        } = scratch;
+        let (est, tables, lights) = (&self.estimator, &self.tables, &self.lights);
         let time = &mut counters.stages;
         time.time(Stage::Generate, || {
             generate::generate(queue, sampler, job.frame, pixels, samples)
         });
         counters.paths += queue.len() as u64;
-        for depth in 0..self.max_depth {
+        for depth in 0..est.max_depth {
             if queue.is_empty() {
                 break;
             }
-            let last = depth + 1 == self.max_depth;
+            let last = depth + 1 == est.max_depth;
             counters.rays += queue.len() as u64;
             time.time(Stage::Intersect, || {
-                intersect::intersect(queue, &self.bvh, self.tables.epsilon, rays)
+                intersect::intersect(queue, &self.bvh, tables.epsilon, rays)
             });
-            time.time(Stage::Shade, || shade::shade(queue, &self.tables));
-            counters.invalid_samples +=
-                time.time(Stage::Retire, || retire::retire(queue, last, job));
-            if !last {
-                time.time(Stage::Bounce, || {
-                    bounce::bounce(queue, sampler, &self.tables)
-                });
+            time.time(Stage::Shade, || shade::shade(queue, tables, lights, est));
+            counters.invalid_samples += time.time(Stage::Retire, || {
+                retire::retire(queue, (sampler, est), depth, last, job)
+            });
+            if last {
+                continue;
             }
+            if est.samples_lights() {
+                time.time(Stage::Light, || {
+                    light::sample_lights(queue, sampler, (tables, lights), shadows)
+                });
+                let shadow_rays = time.time(Stage::Shadow, || {
+                    shadow::shadow(queue, shadows, &self.bvh, tables.epsilon)
+                });
+                counters.rays += shadow_rays;
+                counters.shadow_rays += shadow_rays;
+            }
+            time.time(Stage::Bounce, || {
+                bounce::bounce(queue, sampler, tables, est.integrator)
+            });
         }
     }
 }

@@ -33,6 +33,9 @@ pub struct PathQueue<P> {
     pub beta: [Vec<f32>; 3],
     /// Radiance gathered so far, RGB.
     pub radiance: [Vec<f32>; 3],
+    /// The density the current ray's direction was drawn with (0 for a
+    /// camera ray): what weighs emission it finds against light sampling.
+    pub pdf: Vec<f32>,
     /// Distance to the closest hit (intersect stage output).
     pub t: Vec<f32>,
     /// Triangle hit, or [`NO_HIT`] (intersect stage output), or
@@ -53,6 +56,7 @@ impl<P: bytemuck::Pod> PathQueue<P> {
             d: [col(), col(), col()],
             beta: [col(), col(), col()],
             radiance: [col(), col(), col()],
+            pdf: col(),
             t: col(),
             hit: vec![NO_HIT; rows],
         }
@@ -95,18 +99,19 @@ impl<P: Copy> PathQueue<P> {
         // Zipped column iterators: no per-row bounds checks.
         self.pixel[..n]
             .iter_mut()
-            .zip(self.sampler[..n].iter_mut())
+            .zip(self.sampler[..n].iter_mut().zip(self.pdf[..n].iter_mut()))
             .zip(f(ox, n).zip(f(oy, n)).zip(f(oz, n)))
             .zip(f(dx, n).zip(f(dy, n)).zip(f(dz, n)))
             .zip(f(br, n).zip(f(bg, n)).zip(f(bb, n)))
             .zip(f(lr, n).zip(f(lg, n)).zip(f(lb, n)))
             .map(
                 |(
-                    ((((pixel, sampler), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
+                    ((((pixel, (sampler, pdf)), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
                     ((lr, lg), lb),
                 )| NewPath {
                     pixel,
                     sampler,
+                    pdf,
                     o: [ox, oy, oz],
                     d: [dx, dy, dz],
                     beta: [br, bg, bb],
@@ -125,6 +130,7 @@ impl<P: Copy> PathQueue<P> {
                 col[to] = col[from];
             }
         }
+        self.pdf[to] = self.pdf[from];
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
     }
@@ -170,6 +176,7 @@ pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
 pub struct NewPath<'a, P> {
     pixel: &'a mut u32,
     sampler: &'a mut P,
+    pdf: &'a mut f32,
     o: [&'a mut f32; 3],
     d: [&'a mut f32; 3],
     beta: [&'a mut f32; 3],
@@ -182,6 +189,7 @@ impl<P> NewPath<'_, P> {
     pub fn set_camera_ray(self, pixel: u32, sampler: P, o: [f32; 3], d: [f32; 3]) {
         *self.pixel = pixel;
         *self.sampler = sampler;
+        *self.pdf = 0.0;
         for c in 0..3 {
             *self.o[c] = o[c];
             *self.d[c] = d[c];

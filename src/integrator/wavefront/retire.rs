@@ -3,25 +3,45 @@
 use super::queue::{NO_HIT, PathQueue, RETIRED};
 use crate::film::accumulate;
 use crate::integrator::TileJob;
+use crate::integrator::nee::{Estimator, survival};
+use crate::integrator::sampler::Sampler;
 
-/// A path is finished when its ray escaped, or when `last` is set (its
-/// next ray would exceed the maximum depth): its radiance is one sample of
-/// its pixel, added to the tile's sums. Finished rows are then dropped
+/// A path is finished when its ray escaped, when `last` is set (its next
+/// ray would exceed the maximum depth), or when Russian roulette ends it
+/// at this vertex (depth `depth`; the survivors' throughput is divided by
+/// their chance of surviving). A finished path's radiance is one sample of
+/// its pixel, added to the tile's sums; finished rows are then dropped
 /// from the queue ([`PathQueue::compact`]). Returns the number of samples
 /// refused as invalid.
-pub fn retire<P: Copy>(queue: &mut PathQueue<P>, last: bool, job: &mut TileJob) -> u64 {
+pub fn retire<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    (sampler, estimator): (&S, &Estimator),
+    depth: u32,
+    last: bool,
+    job: &mut TileJob,
+) -> u64 {
+    let roulette = !last && estimator.roulette_at(depth);
     let mut invalid = 0;
     let n = queue.len();
-    let hit = &mut queue.hit[..n];
-    let pixel = &queue.pixel[..n];
-    let [lr, lg, lb] = queue.radiance.each_ref().map(|c| &c[..n]);
     for i in 0..n {
-        if last || hit[i] == NO_HIT {
-            let sample = glam::Vec3::new(lr[i], lg[i], lb[i]);
-            if !accumulate(job.sum_of(pixel[i]), sample) {
+        let mut done = last || queue.hit[i] == NO_HIT;
+        if roulette && !done {
+            let beta = glam::Vec3::new(queue.beta[0][i], queue.beta[1][i], queue.beta[2][i]);
+            let q = survival(beta);
+            if sampler.next(&mut queue.sampler[i]) >= q {
+                done = true;
+            } else {
+                for c in &mut queue.beta {
+                    c[i] /= q;
+                }
+            }
+        }
+        if done {
+            let [r, g, b] = queue.radiance.each_ref().map(|c| c[i]);
+            if !accumulate(job.sum_of(queue.pixel[i]), glam::Vec3::new(r, g, b)) {
                 invalid += 1;
             }
-            hit[i] = RETIRED;
+            queue.hit[i] = RETIRED;
         }
     }
     if last {

@@ -1,0 +1,132 @@
+//! What both engines do at a path vertex beyond scattering: next-event
+//! estimation (a shadow ray to a point on an emitter), the multiple
+//! importance sampling weight of emission found by a scattered ray, and
+//! Russian roulette. Each is one scalar function, called by both engines,
+//! so the two compute the same terms.
+
+use super::bsdf::diffuse;
+use super::lights::{Lights, power_heuristic};
+use crate::math::V3;
+use crate::scene::Integrator;
+use glam::Vec3;
+
+/// How paths are traced: the estimator, the maximum depth and Russian
+/// roulette.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Estimator {
+    /// The estimator.
+    pub integrator: Integrator,
+    /// At most this many segments per path (the camera ray is the first).
+    pub max_depth: u32,
+    /// Russian roulette may end paths at vertices of this depth and deeper
+    /// (the camera ray's hit is depth 0); `None`: never.
+    pub rr_depth: Option<u32>,
+}
+
+impl Estimator {
+    /// The report's estimator, to `max_depth`.
+    pub fn report(max_depth: u32) -> Self {
+        Self {
+            integrator: Integrator::Report,
+            max_depth,
+            rr_depth: None,
+        }
+    }
+
+    /// Whether Russian roulette applies at a vertex of depth `depth`: the
+    /// vertex then draws one number for it, before its other numbers.
+    #[inline]
+    pub fn roulette_at(&self, depth: u32) -> bool {
+        self.rr_depth.is_some_and(|d| depth >= d)
+    }
+
+    /// Whether vertices sample emitters (and weight emission by MIS).
+    #[inline]
+    pub fn samples_lights(&self) -> bool {
+        self.integrator == Integrator::Nee
+    }
+}
+
+/// A shadow ray of next-event estimation: if nothing lies on the segment
+/// from `origin` along `dir` up to `t_max`, the path's radiance gains
+/// `throughput × radiance`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowRay {
+    /// Where the ray starts: the path's vertex.
+    pub origin: Vec3,
+    /// Unit direction towards the point on the emitter.
+    pub dir: Vec3,
+    /// The segment ends here, just short of the emitter.
+    pub t_max: f32,
+    /// `f · cos θ · L_e · w / pdf` of the light sample (w its MIS weight).
+    pub radiance: Vec3,
+}
+
+/// Next-event estimation at a diffuse vertex `p` whose normal facing the
+/// incoming ray is `n` and whose BRDF is `f = ρ/π`: a point on an emitter
+/// (`pick`, `u`: three numbers of the path), and the shadow ray towards
+/// it, weighted against cosine-weighted BSDF sampling by the power
+/// heuristic. `None` when nothing can arrive: no emitter, the emitter's
+/// back faces `p`, or the point lies below the surface.
+#[inline]
+pub fn connect(
+    lights: &Lights,
+    epsilon: f32,
+    p: Vec3,
+    n: Vec3,
+    f: Vec3,
+    pick: f32,
+    u: [f32; 2],
+) -> Option<ShadowRay> {
+    let light = lights.sample(pick, u)?;
+    let to = light.point - p;
+    let dist2 = to.length_squared();
+    let dist = dist2.sqrt();
+    let dir = to / dist;
+    // Emission is one-sided: the emitter's front must face the vertex.
+    let cos_light = -light.normal.dot(dir);
+    let t_max = dist - epsilon;
+    if !(cos_light > 0.0 && t_max > epsilon) {
+        return None;
+    }
+    let (fcos, cos) = diffuse::eval(V3::from(n), V3::from(f), V3::from(dir));
+    if cos <= 0.0 {
+        return None;
+    }
+    let pdf_light = light.pdf_area * dist2 / cos_light;
+    let w = power_heuristic(pdf_light, diffuse::pdf_cosine(V3::from(n), V3::from(dir)));
+    Some(ShadowRay {
+        origin: p,
+        dir,
+        t_max,
+        radiance: Vec3::from(fcos) * light.emission * (w / pdf_light),
+    })
+}
+
+/// The MIS weight of emission found by a scattered ray: the ray was drawn
+/// with density `bsdf_pdf` (0 for a camera ray or a specular bounce: then
+/// light sampling could not have found it, and the weight is 1), and hit
+/// triangle `triangle` at distance `t`, whose front faces the ray at
+/// cosine `cos_light`.
+#[inline]
+pub fn emission_weight(
+    estimator: &Estimator,
+    lights: &Lights,
+    bsdf_pdf: f32,
+    triangle: u32,
+    t: f32,
+    cos_light: f32,
+) -> f32 {
+    if !estimator.samples_lights() || bsdf_pdf == 0.0 {
+        return 1.0;
+    }
+    let pdf_light = lights.pdf_area(triangle) * (t * t) / cos_light;
+    power_heuristic(bsdf_pdf, pdf_light)
+}
+
+/// The probability that Russian roulette lets a path of throughput `beta`
+/// go on: its largest component, at most 1.
+#[inline]
+pub fn survival(beta: Vec3) -> f32 {
+    beta.max_element().min(1.0)
+}
