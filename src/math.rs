@@ -42,6 +42,26 @@ pub trait Real:
     fn ne(self, rhs: Self) -> Self::Mask;
     /// `if mask { a } else { b }` lane-wise.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+
+    /// The same truth value in every lane.
+    #[inline(always)]
+    fn splat_mask(b: bool) -> Self::Mask {
+        let z = Self::splat(0.0);
+        if b { z.eq(z) } else { z.ne(z) }
+    }
+    /// The larger of the two, lane-wise: `if self < rhs { rhs } else { self }`
+    /// — one definition for every instantiation (so a NaN in `rhs`, and
+    /// the sign of a zero, resolve the same way in scalar and SIMD code).
+    #[inline(always)]
+    fn max(self, rhs: Self) -> Self {
+        Self::select(self.lt(rhs), rhs, self)
+    }
+    /// The smaller of the two, lane-wise: `if rhs < self { rhs } else { self }`
+    /// (see [`Real::max`]).
+    #[inline(always)]
+    fn min(self, rhs: Self) -> Self {
+        Self::select(rhs.lt(self), rhs, self)
+    }
 }
 
 impl Real for f32 {
@@ -197,6 +217,12 @@ impl<R: Real> V3<R> {
     pub fn scale(self, s: R) -> Self {
         Self::new(self.x * s, self.y * s, self.z * s)
     }
+    /// Each component times the matching component of `o` (an RGB tint,
+    /// say).
+    #[inline(always)]
+    pub fn mul_comp(self, o: Self) -> Self {
+        Self::new(self.x * o.x, self.y * o.y, self.z * o.z)
+    }
     /// Lane-wise `if mask { a } else { b }`.
     #[inline(always)]
     pub fn select(mask: R::Mask, a: Self, b: Self) -> Self {
@@ -223,6 +249,15 @@ impl<R: Real> Sub for V3<R> {
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+
+impl<R: Real> Neg for V3<R> {
+    type Output = Self;
+    /// The vector pointing the other way (exact).
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self::new(-self.x, -self.y, -self.z)
     }
 }
 
