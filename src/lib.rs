@@ -1,25 +1,57 @@
 //! wavetrace: a fast, reproducible CPU path tracer.
 //!
-//! The data flow of a render:
+//! The modules follow the data flow of a render, each layer using only
+//! the ones before it:
 //!
-//! - [`scene`]: the scene (TOML files, the built-in Cornell box);
-//! - [`camera`]: camera rays, jittered over each pixel;
-//! - [`sampling`]: per-sample random streams and hemisphere sampling;
-//! - [`mesh`]: generated meshes (spheres, terrain) for big scenes;
-//! - [`geometry`]: Möller–Trumbore ray/triangle intersection;
-//! - [`bvh`]: the 8-wide bounding volume hierarchy over the triangles;
-//! - [`reference`](mod@reference): the scalar recursive reference tracer (the oracle);
-//! - [`wavefront`]: the SIMD wavefront engine (generate → intersect →
-//!   shade → bounce), the default;
-//! - [`film`]: exact fixed-point accumulation of samples;
-//! - [`output`]: PNG, EXR and PFM images, written atomically;
-//! - [`render`]: settings and the driver that runs an engine;
-//! - [`session`]: the render loop, in sample passes: progress, time
-//!   limits, checkpoints and resume, for a whole render or one shard;
-//! - [`shard`], [`merge`]: render farms: sample-range shards, exact merges;
-//! - [`cli`], [`profile`], [`stats`]: the command line and what it reports.
+//! 1. [`scene`]: the input — camera, materials, triangles; TOML scene
+//!    files, OBJ meshes, generated meshes, the built-in Cornell box. Knows
+//!    nothing of how it is rendered.
+//! 2. [`accel`]: which surface a ray hits first — Möller–Trumbore in 8-wide
+//!    packs and the bounding volume hierarchy, built from the scene.
+//! 3. [`film`]: exact per-pixel sums of samples, and their file format
+//!    (`.wtacc`).
+//! 4. [`integrator`]: what a path does at a vertex — the sampler, the
+//!    scattering routine of each material model — and the two engines that
+//!    trace paths: the scalar recursive [reference
+//!    tracer](integrator::reference) (the oracle) and the SIMD
+//!    [wavefront engine](integrator::wavefront) (the default).
+//! 5. [`output`]: images (PNG, EXR, PFM) and accumulation files, written
+//!    whole or not at all.
+//! 6. [`render`]: the settings of a render and the [`Renderer`](render::Renderer):
+//!    one tile loop, on its own thread pool, for both engines.
+//! 7. [`run`]: long renders in sample passes (time limits, checkpoints,
+//!    signals), farm shards and merges. Library code: it parses no
+//!    arguments and prints nothing.
+//! 8. [`cli`]: the `wavetrace` command — flags, progress bar, messages and
+//!    exit statuses.
 //!
-//! [`real`] holds the one numeric source shared by scalar and 8-wide code.
+//! Beside them: [`math`] (the one numeric source of scalar and 8-wide
+//! kernels), [`fs`] (atomic writes) and [`error`] (the library's [`Error`],
+//! which wraps the typed errors of every layer).
+//!
+//! # Example
+//!
+//! Render the built-in Cornell box at 32×32 pixels, 4 samples per pixel,
+//! and read a pixel back:
+//!
+//! ```
+//! use wavetrace::render::{RenderSettings, Renderer};
+//! use wavetrace::scene::Scene;
+//!
+//! let scene = Scene::cornell();
+//! let mut settings = RenderSettings::for_scene(&scene);
+//! (settings.width, settings.height, settings.spp, settings.threads) = (32, 32, 4, 2);
+//! let renderer = Renderer::new(&scene, &settings)?;
+//! let (film, counters, _seconds) = renderer.render();
+//! assert_eq!(film.samples_per_pixel(), 4);
+//! assert_eq!(counters.paths, 32 * 32 * 4);
+//! let rgb = film.to_rgb(); // linear RGB, row-major, row 0 at the top
+//! assert!(rgb.iter().all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0)));
+//! // Same seed, same bits, whatever the thread count:
+//! settings.threads = 1;
+//! assert_eq!(Renderer::new(&scene, &settings)?.render().0, film);
+//! # Ok::<(), wavetrace::Error>(())
+//! ```
 
 #![warn(missing_docs)]
 

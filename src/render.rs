@@ -7,7 +7,7 @@ use crate::integrator::reference::ReferenceTracer;
 use crate::integrator::sampler::{Independent, Sampler};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
 use crate::integrator::{Counters, Frame, TileJob, estimator_fingerprint};
-use crate::scene::Scene;
+use crate::scene::{Integrator, SamplerKind, Scene};
 use rayon::prelude::*;
 use std::any::Any;
 use std::ops::Range;
@@ -69,7 +69,21 @@ pub struct RenderSettings {
     pub engine: Engine,
     /// Paths per wavefront batch (does not change the image).
     pub batch_size: usize,
+    /// The estimator.
+    pub integrator: Integrator,
+    /// Where the paths' numbers come from.
+    pub sampler: SamplerKind,
+    /// Russian roulette may end paths from this depth on (`None`: never).
+    pub rr_depth: Option<u32>,
 }
+
+/// The estimator a render uses unless the scene, a profile or a flag says
+/// otherwise.
+pub const DEFAULT_INTEGRATOR: Integrator = Integrator::Nee;
+
+/// The sampler a render uses unless the scene, a profile or a flag says
+/// otherwise.
+pub const DEFAULT_SAMPLER: SamplerKind = SamplerKind::Independent;
 
 /// Default paths per wavefront batch: the queues stay in the L2 cache.
 pub const DEFAULT_BATCH_SIZE: usize = 4096;
@@ -82,8 +96,8 @@ pub const MAX_BATCH_SIZE: usize = 1 << 20;
 pub const MAX_DEPTH: u32 = 1024;
 
 impl RenderSettings {
-    /// The scene's defaults: its resolution and depth, 1 sample per pixel,
-    /// seed 0, all cores, the default engine.
+    /// The scene's defaults: its resolution, depth and integrator options,
+    /// 1 sample per pixel, seed 0, all cores, the default engine.
     pub fn for_scene(scene: &Scene) -> Self {
         Self {
             width: scene.camera.width,
@@ -94,7 +108,19 @@ impl RenderSettings {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             engine: Engine::Wavefront,
             batch_size: DEFAULT_BATCH_SIZE,
+            integrator: scene.options.integrator.unwrap_or(DEFAULT_INTEGRATOR),
+            sampler: scene.options.sampler.unwrap_or(DEFAULT_SAMPLER),
+            rr_depth: scene.options.rr_depth,
         }
+    }
+
+    /// The report's estimator exactly as the seed wrote it: uniform
+    /// hemisphere directions, independent numbers, no Russian roulette.
+    pub fn report(mut self) -> Self {
+        self.integrator = Integrator::Report;
+        self.sampler = SamplerKind::Independent;
+        self.rr_depth = None;
+        self
     }
 
     /// Refuse impossible settings, before any work starts.
@@ -120,6 +146,14 @@ impl RenderSettings {
                 "the batch size must be between 1 and {MAX_BATCH_SIZE} paths"
             )));
         }
+        if self.rr_depth.is_some() && self.integrator == Integrator::Report {
+            return bad(
+                "Russian roulette (--rr-depth) is not part of the report's estimator; use it with --integrator bsdf or nee",
+            );
+        }
+        if self.rr_depth == Some(0) {
+            return bad("--rr-depth must be at least 1 (camera rays are never ended)");
+        }
         if self.max_depth > MAX_DEPTH {
             return Err(Error::Settings(format!(
                 "max depth must be at most {MAX_DEPTH} (the reference tracer recurses once per bounce)"
@@ -142,6 +176,13 @@ impl RenderSettings {
         h.update(&self.max_depth.to_le_bytes());
         h.update(&self.seed.to_le_bytes());
         h.update(self.engine.name().as_bytes());
+        // The report's estimator hashes as before integrators existed, so
+        // its checkpoints and partial files stay valid.
+        if self.clone().report() != *self {
+            h.update(self.integrator.name().as_bytes());
+            h.update(self.sampler.name().as_bytes());
+            h.update(&self.rr_depth.map_or(u32::MAX, |d| d).to_le_bytes());
+        }
         h.digest128()
     }
 }
@@ -366,6 +407,20 @@ mod tests {
         assert_ne!(h0, hash(&|s| s.height += 1));
         assert_ne!(h0, hash(&|s| s.max_depth += 1));
         assert_ne!(h0, hash(&|s| s.engine = Engine::Reference));
+        assert_ne!(h0, hash(&|s| s.integrator = Integrator::Bsdf));
+        assert_ne!(h0, hash(&|s| s.sampler = SamplerKind::Sobol));
+        assert_ne!(h0, hash(&|s| s.rr_depth = Some(3)));
+        // The report's estimator hashes as it did before integrators.
+        let report = base.clone().report();
+        let mut old = xxhash_rust::xxh3::Xxh3::new();
+        old.update(&estimator_fingerprint().to_le_bytes());
+        old.update(&scene.content_hash().to_le_bytes());
+        for x in [report.width, report.height, report.max_depth] {
+            old.update(&x.to_le_bytes());
+        }
+        old.update(&report.seed.to_le_bytes());
+        old.update(b"wavefront");
+        assert_eq!(report.image_hash(&scene), old.digest128());
         // And the scene.
         let mut other = scene.clone();
         other.materials[0].reflectance.x *= 0.5;

@@ -156,73 +156,58 @@ fn chi2_distribution_matches_tables() {
 
 fn diffuse_chi2(
     rng: &mut Rng,
-    cos_o: f64,
-    flip: bool,
     sample: impl Fn(V3<f32>, [f32; 2]) -> V3<f32>,
-    pdf: impl Fn(V3<f32>, V3<f32>, V3<f32>) -> f32,
+    pdf: impl Fn(V3<f32>, V3<f32>) -> f32,
 ) -> Outcome {
-    let s = Setup::new(rng, cos_o);
-    // The densities are two-sided: give them the geometric normal the other
-    // way round half of the time.
-    let ng = if flip { -s.n } else { s.n };
+    // The diffuse routines take the facing normal only (wo is on its side).
+    let s = Setup::new(rng, 1.0);
     Domain::default().test(
         CHI2_SAMPLES,
         || Some(s.local(sample(s.n, rng.u2()))),
-        |l| pdf(ng, s.wo, s.world(l)) as f64,
+        |l| pdf(s.n, s.world(l)) as f64,
     )
 }
 
 #[test]
 fn chi2_diffuse_uniform_and_cosine() {
     let mut rng = Rng::new(1);
-    for (i, cos_o) in [0.9, 0.3].into_iter().enumerate() {
+    for i in 0..2 {
         let o = diffuse_chi2(
             &mut rng,
-            cos_o,
-            i == 1,
             |n, u| diffuse::sample_uniform(n, white(), u).wi,
             diffuse::pdf_uniform,
         );
-        check(&format!("diffuse uniform, cos θo = {cos_o}"), &o, true);
+        check(&format!("diffuse uniform #{i}"), &o, true);
         let o = diffuse_chi2(
             &mut rng,
-            cos_o,
-            i == 0,
             |n, u| diffuse::sample_cosine(n, white(), u).wi,
-            diffuse::pdf,
+            diffuse::pdf_cosine,
         );
-        check(&format!("diffuse cosine, cos θo = {cos_o}"), &o, true);
+        check(&format!("diffuse cosine #{i}"), &o, true);
     }
 }
 
-/// Broken: cosine-weighted sampling with the disk radius `X1` instead of
-/// `sqrt(X1)` (the classic bug), against the correct density.
+/// Broken: cosine-weighted sampling (Malley's, polar) with the disk radius
+/// `X1` instead of `sqrt(X1)` (the classic bug), against the correct
+/// density.
 fn broken_cosine<R: Real>(n: V3<R>, u: [R; 2]) -> V3<R> {
     let r = u[0];
     let cos = (-r).mul_add(r, R::splat(1.0)).sqrt();
     let (s, c) = wavetrace::math::sin_cos_2pi(u[1]);
-    wavetrace::integrator::bsdf::to_world(
-        n,
-        wavetrace::integrator::bsdf::tangents(n),
-        r * c,
-        cos,
-        r * s,
-    )
+    diffuse::to_world(n, r * c, cos, r * s)
 }
 
 #[test]
 fn chi2_rejects_broken_diffuse() {
     let mut rng = Rng::new(2);
-    let o = diffuse_chi2(&mut rng, 0.5, false, broken_cosine, diffuse::pdf);
+    let o = diffuse_chi2(&mut rng, broken_cosine, diffuse::pdf_cosine);
     check("broken: cosine sampling with r = X1", &o, false);
     // A density off by a factor cos θ (normalised): uniform sampling judged
     // against the cosine density.
     let o = diffuse_chi2(
         &mut rng,
-        0.5,
-        false,
         |n, u| diffuse::sample_uniform(n, white(), u).wi,
-        diffuse::pdf,
+        diffuse::pdf_cosine,
     );
     check("broken: uniform sampling, pdf off by cos θ", &o, false);
 }
@@ -230,41 +215,41 @@ fn chi2_rejects_broken_diffuse() {
 #[test]
 fn diffuse_eval_pdf_consistency_and_furnace() {
     let mut rng = Rng::new(3);
+    let pi = std::f32::consts::PI;
     let rho = V3::new(0.8f32, 0.5, 0.25);
+    let f = V3::new(rho.x / pi, rho.y / pi, rho.z / pi);
     let (mut sum_u, mut sum_c, mut sum2_u) = (0.0f64, 0.0f64, 0.0f64);
     let n_samples = 200_000;
-    for i in 0..n_samples {
-        let s = {
-            let c = rng.d().max(1e-3);
-            Setup::new(&mut rng, c)
-        };
+    for _ in 0..n_samples {
+        let n = v32(rng.unit());
         for cosine in [false, true] {
             let smp = if cosine {
-                diffuse::sample_cosine(s.n, rho, rng.u2())
+                diffuse::sample_cosine(n, f, rng.u2())
             } else {
-                {
-                    let pi = std::f32::consts::PI;
-                    diffuse::sample_uniform(
-                        s.n,
-                        V3::new(rho.x / pi, rho.y / pi, rho.z / pi),
-                        rng.u2(),
-                    )
-                }
+                diffuse::sample_uniform(n, f, rng.u2())
             };
-            let ng = if i % 2 == 0 { s.n } else { -s.n };
-            let f = diffuse::eval(ng, s.wo, smp.wi, rho);
+            let (fc, cos) = diffuse::eval(n, f, smp.wi);
             let pdf = if cosine {
-                diffuse::pdf(ng, s.wo, smp.wi)
+                diffuse::pdf_cosine(n, smp.wi)
             } else {
-                diffuse::pdf_uniform(ng, s.wo, smp.wi)
+                diffuse::pdf_uniform(n, smp.wi)
             };
-            let cos_i = v64(smp.wi).dot(v64(s.n));
+            let cos_i = v64(smp.wi).dot(v64(n));
             if cos_i > 1e-6 {
-                assert_eq!(f.x.to_bits(), smp.f.x.to_bits());
-                assert_eq!(f.z.to_bits(), smp.f.z.to_bits());
-                // The cosines differ by rounding (a dot product against sqrt(1 - X1)).
-                assert!((pdf - smp.pdf).abs() < 1e-7, "{pdf} vs {}", smp.pdf);
+                assert_eq!(smp.f.x.to_bits(), f.x.to_bits());
+                // f · cos, with cos the dot product (the sample's cos may
+                // differ from it by rounding).
+                assert!((fc.x as f64 - f.x as f64 * cos_i).abs() < 2e-7 * f.x as f64);
+                assert!((cos as f64 - cos_i).abs() < 1e-6);
                 assert!((smp.cos as f64 - cos_i).abs() < 1e-6);
+                if cosine {
+                    assert!((pdf - smp.pdf).abs() < 1e-7, "{pdf} vs {}", smp.pdf);
+                } else {
+                    assert_eq!(pdf, smp.pdf);
+                }
+                // weight = eval · cos / pdf where both are defined.
+                let w = smp.weigh(white()).y as f64;
+                assert!((w / (fc.y as f64 / pdf as f64) - 1.0).abs() < 1e-3 || cos_i < 1e-3);
             }
             let w = smp.weigh(white());
             // Weight in the red channel with ρ = 0.8: normalise to ρ = 1.
@@ -277,10 +262,10 @@ fn diffuse_eval_pdf_consistency_and_furnace() {
                 sum2_u += w * w;
             }
             // Nothing on the other side.
-            let below = V3::new(-smp.wi.x, -smp.wi.y, -smp.wi.z);
-            assert_eq!(diffuse::eval(ng, s.wo, below, rho).x, 0.0);
-            assert_eq!(diffuse::pdf(ng, s.wo, below), 0.0);
-            assert_eq!(diffuse::pdf_uniform(ng, s.wo, below), 0.0);
+            let below = -smp.wi;
+            assert_eq!(diffuse::eval(n, f, below).0.x, 0.0);
+            assert_eq!(diffuse::pdf_cosine(n, below), 0.0);
+            assert_eq!(diffuse::pdf_uniform(n, below), 0.0);
         }
     }
     let n = n_samples as f64;
@@ -296,18 +281,25 @@ fn diffuse_eval_pdf_consistency_and_furnace() {
 
 #[test]
 fn diffuse_reciprocal() {
+    // eval gives f · cos θi for the normal facing wo: f(wo, wi) = eval / cos θi
+    // must equal f(wi, wo) = eval(n, f, wo) / cos θo, with n facing wi.
     let mut rng = Rng::new(4);
-    let rho = V3::new(0.7f32, 0.2, 1.0);
+    let f = V3::new(0.7f32, 0.2, 1.0);
     for _ in 0..100_000 {
         let n = v32(rng.unit());
         let (a, b) = (v32(rng.unit()), v32(rng.unit()));
-        let (f, g) = (diffuse::eval(n, a, b, rho), diffuse::eval(n, b, a, rho));
-        assert_eq!(
-            [f.x, f.y, f.z].map(f32::to_bits),
-            [g.x, g.y, g.z].map(f32::to_bits)
-        );
-        let same = v64(n).dot(v64(a)) * v64(n).dot(v64(b)) > 0.0;
-        assert_eq!(f.y > 0.0, same);
+        let na = if n.dot(a) > 0.0 { n } else { -n };
+        let nb = if n.dot(b) > 0.0 { n } else { -n };
+        let (fab, cb) = diffuse::eval(na, f, b);
+        let (fba, ca) = diffuse::eval(nb, f, a);
+        let same_side = v64(n).dot(v64(a)) * v64(n).dot(v64(b)) > 0.0;
+        assert_eq!(fab.y > 0.0, same_side && cb > 0.0);
+        if fab.y > 0.0 && fba.y > 0.0 {
+            let (x, y) = (fab.y as f64 / cb as f64, fba.y as f64 / ca as f64);
+            assert!((x / y - 1.0).abs() < 1e-6, "{x} vs {y}");
+        } else {
+            assert_eq!(fab.y == 0.0, fba.y == 0.0);
+        }
     }
 }
 
@@ -443,12 +435,12 @@ fn chi2_metal_vndf() {
 /// al. 2007) instead of the visible normals, reported with the VNDF
 /// density.
 fn broken_ndf_sample(n: V3<f32>, wo: V3<f32>, alpha: f32, u: [f32; 2]) -> BsdfSample<f32> {
-    use wavetrace::integrator::bsdf::{tangents, to_world};
+    use wavetrace::integrator::bsdf::diffuse::to_world;
     let t2 = alpha * alpha * u[0] / (1.0 - u[0]);
     let cos = 1.0 / (1.0 + t2).sqrt();
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let (sp, cp) = wavetrace::math::sin_cos_2pi(u[1]);
-    let m = to_world(n, tangents(n), sin * cp, cos, sin * sp);
+    let m = to_world(n, sin * cp, cos, sin * sp);
     let wi = reflect(wo, m);
     let valid = n.dot(wi) > 0.0 && wo.dot(m) > 0.0;
     BsdfSample {
@@ -1061,7 +1053,7 @@ impl Lanes {
             _ => {
                 let w = v32(rng.unit());
                 // Mostly on the side of n.
-                if (k + l) % 5 != 0 && v64(w).dot(v64(n[l])) < 0.0 {
+                if !(k + l).is_multiple_of(5) && v64(w).dot(v64(n[l])) < 0.0 {
                     -w
                 } else {
                     w
@@ -1093,9 +1085,9 @@ fn simd_equals_scalar_diffuse_and_mirror() {
         let (n8, wo8, wi8, t8) = (pack(x.n), pack(x.wo), pack(x.wi), pack(x.tint));
         let c8 = diffuse::sample_cosine(n8, t8, x.u8());
         let u8_ = diffuse::sample_uniform(n8, t8, x.u8());
-        let e8 = diffuse::eval(n8, wo8, wi8, t8);
-        let p8 = diffuse::pdf(n8, wo8, wi8);
-        let q8 = diffuse::pdf_uniform(n8, wo8, wi8);
+        let (e8, ec8) = diffuse::eval(n8, t8, wi8);
+        let p8 = diffuse::pdf_cosine(n8, wi8);
+        let q8 = diffuse::pdf_uniform(n8, wi8);
         let m8 = mirror::sample(n8, wo8, t8);
         for l in 0..8 {
             assert!(same_sample(
@@ -1108,15 +1100,10 @@ fn simd_equals_scalar_diffuse_and_mirror() {
                 l,
                 &diffuse::sample_uniform(x.n[l], x.tint[l], x.u[l])
             ));
-            assert!(same_v(
-                lane_v(e8, l),
-                diffuse::eval(x.n[l], x.wo[l], x.wi[l], x.tint[l])
-            ));
-            assert!(same(lane(p8, l), diffuse::pdf(x.n[l], x.wo[l], x.wi[l])));
-            assert!(same(
-                lane(q8, l),
-                diffuse::pdf_uniform(x.n[l], x.wo[l], x.wi[l])
-            ));
+            let (e, ec) = diffuse::eval(x.n[l], x.tint[l], x.wi[l]);
+            assert!(same_v(lane_v(e8, l), e) && same(lane(ec8, l), ec));
+            assert!(same(lane(p8, l), diffuse::pdf_cosine(x.n[l], x.wi[l])));
+            assert!(same(lane(q8, l), diffuse::pdf_uniform(x.n[l], x.wi[l])));
             assert!(same_sample(
                 &m8,
                 l,
@@ -1172,8 +1159,8 @@ fn simd_equals_scalar_metal() {
         let co8 = n8.dot(wo8).abs();
         let ci8 = n8.dot(wi8).abs();
         let g8 = metal::g2(co8, ci8, a8);
-        for l in 0..8 {
-            let (n, wo, wi, a) = (x.n[l], x.wo[l], x.wi[l], alpha[l]);
+        for (l, &a) in alpha.iter().enumerate() {
+            let (n, wo, wi) = (x.n[l], x.wo[l], x.wi[l]);
             assert!(same_sample(
                 &s8,
                 l,

@@ -1,93 +1,15 @@
 //! The `wavetrace` binary, run as a user runs it.
 //!
 //! Every render here is tiny (16×12 pixels, 2 samples per pixel). Each test
-//! works in its own fresh folder under the system's temp dir.
+//! works in its own fresh folder (`common::TempDir`).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
-use wavetrace::render::{RenderSettings, Renderer};
+mod common;
+
+use common::{TINY, TempDir, run, run_ok, run_with_limit, settings, stderr, tiny};
+use std::path::Path;
+use std::time::Duration;
+use wavetrace::render::Renderer;
 use wavetrace::scene::Scene;
-
-const BIN: &str = env!("CARGO_BIN_EXE_wavetrace");
-/// The tiny render every test asks for, unless it tests these flags.
-const TINY: [&str; 6] = ["--width", "16", "--height", "12", "--spp", "2"];
-
-/// A fresh folder, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("wavetrace-test-cli-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-
-    /// The names of the files in the folder, sorted.
-    fn files(&self) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(&self.0)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-/// Runs the binary in `dir` with `args`, killing it after `limit`.
-fn run_with_limit(dir: &Path, args: &[&str], limit: Duration) -> Output {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > limit {
-            child.kill().unwrap();
-            let out = child.wait_with_output().unwrap();
-            panic!(
-                "wavetrace {args:?} still running after {limit:?}\nstderr: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    child.wait_with_output().unwrap()
-}
-
-fn run(dir: &Path, args: &[&str]) -> Output {
-    run_with_limit(dir, args, Duration::from_secs(120))
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Runs a render that must succeed.
-fn render_ok(dir: &Path, args: &[&str]) -> Output {
-    let o = run(dir, args);
-    assert!(
-        o.status.success(),
-        "wavetrace {args:?} failed: {}",
-        stderr(&o)
-    );
-    o
-}
 
 /// Runs a command that must be refused at once, with `message` in its
 /// error, leaving nothing behind in `dir`.
@@ -102,7 +24,7 @@ fn assert_refused(dir: &TempDir, args: &[&str], message: &str) {
         vec!["--spp", "1000000"]
     };
     all.extend_from_slice(args);
-    let o = run_with_limit(&dir.0, &all, Duration::from_secs(60));
+    let o = run_with_limit(dir, &all, Duration::from_secs(60));
     let err = stderr(&o);
     assert!(!o.status.success(), "wavetrace {all:?} was not refused");
     assert!(
@@ -119,7 +41,7 @@ fn assert_refused(dir: &TempDir, args: &[&str], message: &str) {
 #[test]
 fn impossible_settings_are_refused_before_any_work() {
     let dir = TempDir::new("refused");
-    let out = dir.path("x.png");
+    let out = dir.join("x.png");
     let out = out.to_str().unwrap();
     assert_refused(&dir, &["--spp", "0", "--out", out], "samples per pixel");
     assert_refused(&dir, &["--width", "0", "--out", out], "1x1");
@@ -138,21 +60,21 @@ fn impossible_settings_are_refused_before_any_work() {
     );
     assert_refused(&dir, &["--out", "x.jpg"], "unknown image format");
     assert_refused(&dir, &["--out", "x"], "unknown image format");
-    let missing = dir.path("no-such-dir/x.png");
+    let missing = dir.join("no-such-dir/x.png");
     assert_refused(
         &dir,
         &["--out", missing.to_str().unwrap()],
         missing.to_str().unwrap(),
     );
     // The stats file is checked before the render, too: no image appears.
-    let stats = dir.path("no-such-dir/stats.json");
+    let stats = dir.join("no-such-dir/stats.json");
     assert_refused(
         &dir,
         &["--out", out, "--stats", stats.to_str().unwrap()],
         stats.to_str().unwrap(),
     );
     // A profile file that does not exist.
-    let profile = dir.path("missing-profile.toml");
+    let profile = dir.join("missing-profile.toml");
     assert_refused(
         &dir,
         &["--profile", profile.to_str().unwrap(), "--out", out],
@@ -170,9 +92,9 @@ fn impossible_settings_are_refused_before_any_work() {
     );
     assert_refused(&dir, &["--max-depth", "100000", "--out", out], "max depth");
     // Two outputs that are one file, however the paths are spelled.
-    let stats = dir.path("s.json");
+    let stats = dir.join("s.json");
     let stats = stats.to_str().unwrap();
-    let dotted = format!("{}/./s.json", dir.path("").display());
+    let dotted = format!("{}/./s.json", dir.join("").display());
     assert_refused(
         &dir,
         &["--out", out, "--stats", stats, "--checkpoint", &dotted],
@@ -183,9 +105,9 @@ fn impossible_settings_are_refused_before_any_work() {
 #[test]
 fn the_stats_file_has_every_field_and_they_agree() {
     let dir = TempDir::new("stats");
-    let (out, stats) = (dir.path("img.png"), dir.path("stats.json"));
-    let o = render_ok(
-        &dir.0,
+    let (out, stats) = (dir.join("img.png"), dir.join("stats.json"));
+    let o = run_ok(
+        &dir,
         &[
             "render",
             "--width",
@@ -256,8 +178,8 @@ fn the_stats_file_has_every_field_and_they_agree() {
     assert!(close(f("paths_per_second"), paths as f64 / seconds), "{j}");
     // The same counts as the library's renderer with the same settings.
     let scene = Scene::cornell();
-    let mut s = RenderSettings::for_scene(&scene);
-    (s.width, s.height, s.spp, s.max_depth, s.seed, s.threads) = (16, 12, 3, 4, 77, 2);
+    let mut s = settings(&scene, 16, 12, 3);
+    (s.max_depth, s.seed, s.threads) = (4, 77, 2);
     let (_, counters, _) = Renderer::new(&scene, &s).unwrap().render();
     assert_eq!((paths, rays), (counters.paths, counters.rays));
     // And the figures are printed.
@@ -347,26 +269,26 @@ fn srgb(x: f32) -> f32 {
 #[test]
 fn png_exr_and_pfm_outputs_agree_with_each_other_and_the_library() {
     let dir = TempDir::new("formats");
-    let common = [TINY.as_slice(), &["--seed", "3", "--threads", "2"]].concat();
+    let flags = [TINY.as_slice(), &["--seed", "3", "--threads", "2"]].concat();
     for name in ["img.png", "img.exr", "img.pfm"] {
-        let out = dir.path(name);
-        let mut args = common.clone();
+        let out = dir.join(name);
+        let mut args = flags.clone();
         args.extend(["--out", out.to_str().unwrap()]);
-        render_ok(&dir.0, &args);
+        run_ok(&dir, &args);
     }
     assert_eq!(dir.files(), ["img.exr", "img.pfm", "img.png"]);
 
-    let (w, h, pfm) = read_pfm(&dir.path("img.pfm"));
+    let (w, h, pfm) = read_pfm(&dir.join("img.pfm"));
     assert_eq!((w, h), (16, 12));
     // The linear pixels are the library's film, exactly.
     let scene = Scene::cornell();
-    let mut s = RenderSettings::for_scene(&scene);
-    (s.width, s.height, s.spp, s.seed, s.threads) = (16, 12, 2, 3, 1);
+    let mut s = tiny(&scene);
+    (s.seed, s.threads) = (3, 1);
     let (film, _, _) = Renderer::new(&scene, &s).unwrap().render();
     assert!(pfm == film.to_rgb(), "the PFM is not the film's mean");
     assert!(pfm.iter().any(|p| p[1] > 0.0), "the PFM is black");
 
-    let (ew, eh, exr) = read_exr(&dir.path("img.exr"));
+    let (ew, eh, exr) = read_exr(&dir.join("img.exr"));
     assert_eq!((ew, eh), (16, 12));
     for (i, (a, b)) in exr.iter().zip(&pfm).enumerate() {
         assert_eq!(
@@ -376,7 +298,7 @@ fn png_exr_and_pfm_outputs_agree_with_each_other_and_the_library() {
         );
     }
 
-    let png = image::open(dir.path("img.png")).unwrap();
+    let png = image::open(dir.join("img.png")).unwrap();
     assert_eq!((png.width(), png.height()), (16, 12));
     let png = png.to_rgb8();
     for (i, (p, f)) in png.pixels().zip(&pfm).enumerate() {
@@ -393,7 +315,7 @@ fn png_exr_and_pfm_outputs_agree_with_each_other_and_the_library() {
 #[test]
 fn a_scene_error_names_the_file_and_line() {
     let dir = TempDir::new("scene-error");
-    let scene = dir.path("bad.toml");
+    let scene = dir.join("bad.toml");
     let text = wavetrace::scene::CORNELL_TOML.replacen(
         "reflectance = [0.15, 0.75, 0.15]",
         "reflectance = [0.15, 7.5, 0.15]",
@@ -405,9 +327,9 @@ fn a_scene_error_names_the_file_and_line() {
         .expect("the Cornell box's floor reflectance")
         + 1;
     std::fs::write(&scene, text).unwrap();
-    let out = dir.path("bad.png");
+    let out = dir.join("bad.png");
     let o = run(
-        &dir.0,
+        &dir,
         &[
             scene.to_str().unwrap(),
             "--out",
@@ -423,8 +345,8 @@ fn a_scene_error_names_the_file_and_line() {
     assert!(err.contains("materials.floor.reflectance"), "{err}");
     assert!(!out.exists());
     // A scene file that does not exist.
-    let missing = dir.path("missing.toml");
-    let o = run(&dir.0, &[missing.to_str().unwrap(), "--spp", "1"]);
+    let missing = dir.join("missing.toml");
+    let o = run(&dir, &[missing.to_str().unwrap(), "--spp", "1"]);
     assert!(!o.status.success());
     assert!(
         stderr(&o).contains(missing.to_str().unwrap()),
@@ -437,36 +359,33 @@ fn a_scene_error_names_the_file_and_line() {
 #[test]
 fn a_scene_file_renders_to_its_own_name_and_render_is_the_default_command() {
     let dir = TempDir::new("default-out");
-    std::fs::write(dir.path("box.toml"), wavetrace::scene::CORNELL_TOML).unwrap();
+    std::fs::write(dir.join("box.toml"), wavetrace::scene::CORNELL_TOML).unwrap();
     // No --out: the image is the scene's name with .png, in the current folder.
-    render_ok(&dir.0, &[["box.toml"].as_slice(), &TINY].concat());
+    run_ok(&dir, &[["box.toml"].as_slice(), &TINY].concat());
     assert_eq!(dir.files(), ["box.png", "box.toml"]);
     // `render` and no command are the same thing; the file is replaced whole.
-    let first = std::fs::read(dir.path("box.png")).unwrap();
-    render_ok(&dir.0, &[["render", "box.toml"].as_slice(), &TINY].concat());
-    assert_eq!(std::fs::read(dir.path("box.png")).unwrap(), first);
+    let first = std::fs::read(dir.join("box.png")).unwrap();
+    run_ok(&dir, &[["render", "box.toml"].as_slice(), &TINY].concat());
+    assert_eq!(std::fs::read(dir.join("box.png")).unwrap(), first);
     assert_eq!(dir.files(), ["box.png", "box.toml"]);
     // And the built-in scene is the same Cornell box.
-    render_ok(
-        &dir.0,
-        &[TINY.as_slice(), &["--out", "builtin.png"]].concat(),
-    );
-    assert_eq!(std::fs::read(dir.path("builtin.png")).unwrap(), first);
+    run_ok(&dir, &[TINY.as_slice(), &["--out", "builtin.png"]].concat());
+    assert_eq!(std::fs::read(dir.join("builtin.png")).unwrap(), first);
 }
 
 #[test]
 fn flags_override_the_profile_which_overrides_the_scene() {
     let dir = TempDir::new("profile");
     std::fs::write(
-        dir.path("mine.toml"),
+        dir.join("mine.toml"),
         "width = 8\nheight = 6\nspp = 3\nmax_depth = 2\nseed = 9\n",
     )
     .unwrap();
     let stats = |args: &[&str]| -> serde_json::Value {
         let mut all = vec!["--out", "x.pfm", "--stats", "s.json"];
         all.extend_from_slice(args);
-        render_ok(&dir.0, &all);
-        serde_json::from_str(&std::fs::read_to_string(dir.path("s.json")).unwrap()).unwrap()
+        run_ok(&dir, &all);
+        serde_json::from_str(&std::fs::read_to_string(dir.join("s.json")).unwrap()).unwrap()
     };
     let j = stats(&["--profile", "./mine.toml"]);
     let got = |j: &serde_json::Value, k: &str| j[k].as_u64().unwrap();
@@ -486,9 +405,9 @@ fn flags_override_the_profile_which_overrides_the_scene() {
         [4, 4, 16, 3]
     );
     // A profile with an unknown key is refused.
-    std::fs::write(dir.path("bad.toml"), "spp = 2\nsamples = 3\n").unwrap();
-    let o = run(&dir.0, &["--profile", "./bad.toml", "--out", "y.png"]);
+    std::fs::write(dir.join("bad.toml"), "spp = 2\nsamples = 3\n").unwrap();
+    let o = run(&dir, &["--profile", "./bad.toml", "--out", "y.png"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("samples"), "{}", stderr(&o));
-    assert!(!dir.path("y.png").exists());
+    assert!(!dir.join("y.png").exists());
 }

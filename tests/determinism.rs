@@ -2,7 +2,9 @@
 //! and on nothing else — not the thread count, not how the samples are split
 //! into passes, not a round trip through an accumulation file.
 
-use std::path::PathBuf;
+mod common;
+
+use common::TempDir;
 use wavetrace::film::Film;
 use wavetrace::output::write_image;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
@@ -10,8 +12,8 @@ use wavetrace::scene::Scene;
 
 fn settings(seed: u64, threads: usize) -> RenderSettings {
     let scene = Scene::cornell();
-    let mut s = RenderSettings::for_scene(&scene);
-    (s.width, s.height, s.spp, s.max_depth) = (32, 24, 8, 3);
+    let mut s = common::settings(&scene, 32, 24, 8);
+    s.max_depth = 3;
     s.seed = seed;
     s.threads = threads;
     s
@@ -27,27 +29,6 @@ fn render_with(seed: u64, threads: usize, engine: Engine) -> Film {
     let (film, counters, _) = Renderer::new(&Scene::cornell(), &s).unwrap().render();
     assert_eq!(counters.paths, 32 * 24 * 8);
     film
-}
-
-/// A fresh directory under the system's temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!(
-            "wavetrace-test-determinism-{name}-{}",
-            std::process::id()
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 fn assert_same_film(a: &Film, b: &Film, what: &str) {
@@ -68,10 +49,7 @@ fn the_same_seed_gives_the_same_film_and_the_same_image_bytes() {
     assert!(a.sums.iter().any(|s| s[0] > 0));
     assert!(a.sums.iter().any(|s| s != &a.sums[0]));
     for ext in ["png", "pfm", "exr"] {
-        let (pa, pb) = (
-            dir.0.join(format!("a.{ext}")),
-            dir.0.join(format!("b.{ext}")),
-        );
+        let (pa, pb) = (dir.join(format!("a.{ext}")), dir.join(format!("b.{ext}")));
         write_image(&pa, a.width, a.height, &a.to_rgb()).unwrap();
         write_image(&pb, b.width, b.height, &b.to_rgb()).unwrap();
         let (ba, bb) = (std::fs::read(&pa).unwrap(), std::fs::read(&pb).unwrap());
@@ -79,13 +57,8 @@ fn the_same_seed_gives_the_same_film_and_the_same_image_bytes() {
         assert!(ba == bb, "the .{ext} files differ");
     }
     // Written atomically: nothing but the six images is left in the folder.
-    let mut names: Vec<String> = std::fs::read_dir(&dir.0)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
     assert_eq!(
-        names,
+        dir.files(),
         ["a.exr", "a.pfm", "a.png", "b.exr", "b.pfm", "b.png"]
     );
 }
@@ -177,7 +150,7 @@ fn an_accumulation_file_round_trip_continues_the_render_exactly() {
     let mut whole = renderer.new_film();
     renderer.render_samples(0..8, &mut whole);
 
-    let path = dir.0.join("part.acc");
+    let path = dir.join("part.acc");
     let mut first = renderer.new_film();
     renderer.render_samples(0..3, &mut first);
     first.save(&path, hash).unwrap();
@@ -201,11 +174,7 @@ fn an_accumulation_file_round_trip_continues_the_render_exactly() {
     std::fs::write(&path, &bytes[..bytes.len() - 5]).unwrap();
     assert!(Film::load(&path, Some(hash)).is_err());
     // And no temporary files are left beside it.
-    let names: Vec<_> = std::fs::read_dir(&dir.0)
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
-    assert_eq!(names, ["part.acc"]);
+    assert_eq!(dir.files(), ["part.acc"]);
 }
 
 #[test]

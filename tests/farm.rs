@@ -6,79 +6,16 @@
 // Films hold lists of sample ranges; a list of one range is what is meant.
 #![allow(clippy::single_range_in_vec_init)]
 
+mod common;
+
+use common::{TempDir, ok, p, refused, run, run_env, run_ok, run_refused};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use wavetrace::film::Film;
-use wavetrace::render::{RenderSettings, Renderer};
+use wavetrace::render::Renderer;
 use wavetrace::scene::Scene;
 
 const SMALL: &[&str] = &["--width", "16", "--height", "16", "--spp", "16"];
-
-/// A fresh, empty directory for one test, removed when dropped.
-struct Scratch(PathBuf);
-
-impl std::ops::Deref for Scratch {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let dir = std::env::temp_dir().join(format!("wavetrace-farm-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    Scratch(dir)
-}
-
-/// Run `wavetrace ARGS` with `env` added and every scheduler variable of
-/// the test's own environment removed.
-fn wavetrace<S: AsRef<std::ffi::OsStr>>(args: &[S], env: &[(&str, &str)]) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_wavetrace"));
-    cmd.args(args);
-    for var in [
-        "SLURM_ARRAY_TASK_ID",
-        "SLURM_ARRAY_TASK_COUNT",
-        "SLURM_ARRAY_TASK_MIN",
-        "SLURM_ARRAY_TASK_MAX",
-        "SLURM_ARRAY_TASK_STEP",
-        "SLURM_CPUS_PER_TASK",
-        "JOB_COMPLETION_INDEX",
-    ] {
-        cmd.env_remove(var);
-    }
-    cmd.envs(env.iter().copied());
-    cmd.output().unwrap()
-}
-
-fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "wavetrace failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-/// Run and expect failure; returns stderr.
-fn refused<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(
-    args: &[S],
-    env: &[(&str, &str)],
-) -> String {
-    let out = wavetrace(args, env);
-    assert!(!out.status.success(), "expected an error from {args:?}");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 /// Render shard `i` of `n` of the SMALL render into `dir/part-i.wtacc`.
 fn shard(dir: &Path, i: u32, n: u32, extra: &[&str]) -> PathBuf {
@@ -88,7 +25,7 @@ fn shard(dir: &Path, i: u32, n: u32, extra: &[&str]) -> PathBuf {
     args.extend_from_slice(SMALL);
     args.extend_from_slice(&["--shard", &spec, "--partial", p(&part)]);
     args.extend_from_slice(extra);
-    ok(wavetrace(&args, &[]));
+    run_ok(dir, &args);
     part
 }
 
@@ -98,15 +35,16 @@ fn single(dir: &Path) -> (PathBuf, PathBuf) {
     let mut args = vec!["render"];
     args.extend_from_slice(SMALL);
     args.extend_from_slice(&["--out", p(&png), "--partial", p(&acc)]);
-    ok(wavetrace(&args, &[]));
+    run_ok(dir, &args);
     (png, acc)
 }
 
-fn merge(parts: &[PathBuf], extra: &[&str]) -> Output {
+/// `wavetrace merge PARTS EXTRA`, run in `dir`.
+fn merge(dir: &Path, parts: &[PathBuf], extra: &[&str]) -> Output {
     let mut args = vec!["merge"];
     args.extend(parts.iter().map(|x| p(x)));
     args.extend_from_slice(extra);
-    wavetrace(&args, &[])
+    run(dir, &args)
 }
 
 fn ranges_of(path: &Path) -> Vec<std::ops::Range<u32>> {
@@ -115,7 +53,7 @@ fn ranges_of(path: &Path) -> Vec<std::ops::Range<u32>> {
 
 #[test]
 fn merged_shards_equal_a_single_run_byte_for_byte() {
-    let dir = scratch("equal");
+    let dir = TempDir::new("equal");
     let (single_png, single_acc) = single(&dir);
     // Given out of order, with an uneven split (16 = 5 + 5 + 6) as well.
     for n in [4, 3] {
@@ -126,7 +64,11 @@ fn merged_shards_equal_a_single_run_byte_for_byte() {
             dir.join(format!("m{n}.png")),
             dir.join(format!("m{n}.wtacc")),
         );
-        ok(merge(&parts, &["--out", p(&png), "--partial", p(&acc)]));
+        ok(merge(
+            &dir,
+            &parts,
+            &["--out", p(&png), "--partial", p(&acc)],
+        ));
         assert_eq!(
             std::fs::read(&png).unwrap(),
             std::fs::read(&single_png).unwrap()
@@ -146,8 +88,8 @@ fn merged_shards_equal_a_single_run_byte_for_byte() {
         .map(|i| dir.join(format!("of4/part-{i}.wtacc")))
         .collect();
     let (pfm, acc) = (dir.join("m.pfm"), dir.join("m.wtacc"));
-    ok(merge(&parts, &["--out", p(&pfm)]));
-    ok(merge(&parts, &["--out", p(&acc)]));
+    ok(merge(&dir, &parts, &["--out", p(&pfm)]));
+    ok(merge(&dir, &parts, &["--out", p(&acc)]));
     assert_eq!(
         std::fs::read(&acc).unwrap(),
         std::fs::read(&single_acc).unwrap()
@@ -156,7 +98,7 @@ fn merged_shards_equal_a_single_run_byte_for_byte() {
     let mut args = vec!["render"];
     args.extend_from_slice(SMALL);
     args.extend_from_slice(&["--out", p(&single_pfm)]);
-    ok(wavetrace(&args, &[]));
+    run_ok(&dir, &args);
     assert_eq!(
         std::fs::read(&pfm).unwrap(),
         std::fs::read(&single_pfm).unwrap()
@@ -166,13 +108,8 @@ fn merged_shards_equal_a_single_run_byte_for_byte() {
 #[test]
 fn library_merge_of_sample_ranges_equals_one_render() {
     let scene = Scene::cornell();
-    let mut settings = RenderSettings::for_scene(&scene);
-    (
-        settings.width,
-        settings.height,
-        settings.spp,
-        settings.threads,
-    ) = (12, 10, 13, 2);
+    let mut settings = common::settings(&scene, 12, 10, 13);
+    settings.threads = 2;
     let renderer = Renderer::new(&scene, &settings).unwrap();
     let (whole, _, _) = renderer.render();
     let mut merged = renderer.new_film();
@@ -187,7 +124,7 @@ fn library_merge_of_sample_ranges_equals_one_render() {
 
 #[test]
 fn shard_ranges_cover_spp_exactly() {
-    let dir = scratch("cover");
+    let dir = TempDir::new("cover");
     for n in [1, 3, 4, 7, 16] {
         let mut all: Vec<_> = (0..n)
             .map(|i| {
@@ -213,20 +150,20 @@ fn shard_ranges_cover_spp_exactly() {
     let mut args = vec!["render"];
     args.extend_from_slice(SMALL);
     args.extend_from_slice(&["--samples", "3..11", "--partial", p(&part)]);
-    ok(wavetrace(&args, &[]));
+    run_ok(&dir, &args);
     assert_eq!(ranges_of(&part), vec![3..11]);
 }
 
 #[test]
 fn shard_auto_follows_slurm_and_kubernetes() {
-    let dir = scratch("auto");
+    let dir = TempDir::new("auto");
     let part = dir.join("auto.wtacc");
     let run = |extra: &[&str], env: &[(&str, &str)]| {
         let mut args = vec!["render"];
         args.extend_from_slice(SMALL);
         args.extend_from_slice(&["--shard", "auto", "--partial", p(&part)]);
         args.extend_from_slice(extra);
-        ok(wavetrace(&args, env));
+        ok(run_env(&dir, &args, env));
         Film::load_with_meta(&part, None).unwrap()
     };
     // A Slurm array --array=1-4: task 3 is shard 2 of 4.
@@ -263,17 +200,18 @@ fn shard_auto_follows_slurm_and_kubernetes() {
         a
     };
     let _ = std::fs::remove_file(&part);
-    let e = refused(&auto(&[]), &[]);
+    let e = run_refused(&dir, &auto(&[]));
     assert!(
         e.contains("SLURM_ARRAY_TASK_ID") && e.contains("JOB_COMPLETION_INDEX"),
         "{e}"
     );
-    let e = refused(&auto(&[]), &[("JOB_COMPLETION_INDEX", "1")]);
+    let e = refused(run_env(&dir, &auto(&[]), &[("JOB_COMPLETION_INDEX", "1")]));
     assert!(e.contains("--shard-count"), "{e}");
-    let e = refused(
+    let e = refused(run_env(
+        &dir,
         &auto(&["--shard-count", "4"]),
         &[("JOB_COMPLETION_INDEX", "4")],
-    );
+    ));
     assert!(e.contains("not below the shard count 4"), "{e}");
     let sparse = [
         ("SLURM_ARRAY_TASK_ID", "4"),
@@ -282,7 +220,7 @@ fn shard_auto_follows_slurm_and_kubernetes() {
         ("SLURM_ARRAY_TASK_COUNT", "3"),
         ("SLURM_ARRAY_TASK_STEP", "2"),
     ];
-    let e = refused(&auto(&[]), &sparse);
+    let e = refused(run_env(&dir, &auto(&[]), &sparse));
     assert!(
         e.contains("not contiguous") && e.contains("--shard-count"),
         "{e}"
@@ -292,7 +230,7 @@ fn shard_auto_follows_slurm_and_kubernetes() {
 
 #[test]
 fn threads_follow_slurm_cpus_per_task() {
-    let dir = scratch("threads");
+    let dir = TempDir::new("threads");
     let stats = dir.join("stats.json");
     let out = dir.join("t.png");
     let threads_of = |extra: &[&str], env: &[(&str, &str)]| {
@@ -300,7 +238,7 @@ fn threads_follow_slurm_cpus_per_task() {
         args.extend_from_slice(SMALL);
         args.extend_from_slice(&["--out", p(&out), "--stats", p(&stats)]);
         args.extend_from_slice(extra);
-        ok(wavetrace(&args, env));
+        ok(run_env(&dir, &args, env));
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
         json["threads"].as_u64().unwrap()
@@ -310,22 +248,23 @@ fn threads_follow_slurm_cpus_per_task() {
         threads_of(&["--threads", "2"], &[("SLURM_CPUS_PER_TASK", "3")]),
         2
     );
-    let e = refused(
+    let e = refused(run_env(
+        &dir,
         &["render", "--out", p(&out)],
         &[("SLURM_CPUS_PER_TASK", "lots")],
-    );
+    ));
     assert!(e.contains("SLURM_CPUS_PER_TASK"), "{e}");
 }
 
 #[test]
 fn impossible_shards_are_refused_before_work() {
-    let dir = scratch("refuse");
+    let dir = TempDir::new("refuse");
     let part = dir.join("x.wtacc");
     let render = |extra: &[&str]| {
         let mut args = vec!["render"];
         args.extend_from_slice(SMALL);
         args.extend_from_slice(extra);
-        refused(&args, &[])
+        run_refused(&dir, &args)
     };
     let cases: &[(&[&str], &str)] = &[
         (
@@ -371,20 +310,20 @@ fn impossible_shards_are_refused_before_work() {
 
 #[test]
 fn merge_refuses_overlaps_naming_the_file() {
-    let dir = scratch("overlap");
+    let dir = TempDir::new("overlap");
     let parts: Vec<PathBuf> = (0..4).map(|i| shard(&dir, i, 4, &[])).collect();
     let out = dir.join("out.png");
     // The same part twice.
     let mut twice = parts.clone();
     twice.push(parts[1].clone());
-    let e = String::from_utf8(merge(&twice, &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &twice, &["--out", p(&out)]).stderr).unwrap();
     assert!(e.contains("part-1.wtacc") && e.contains("overlap"), "{e}");
     // Shards of different counts: 0/2 holds 0..8, part-1 of 4 holds 4..8.
     let other = dir.join("half");
     std::fs::create_dir_all(&other).unwrap();
     let half = shard(&other, 0, 2, &[]);
-    let e =
-        String::from_utf8(merge(&[half, parts[1].clone()], &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &[half, parts[1].clone()], &["--out", p(&out)]).stderr)
+        .unwrap();
     assert!(
         e.contains("part-1.wtacc: samples 4..8 overlap samples 0..8"),
         "{e}"
@@ -394,10 +333,10 @@ fn merge_refuses_overlaps_naming_the_file() {
 
 #[test]
 fn merge_refuses_missing_samples_naming_the_shards() {
-    let dir = scratch("missing");
+    let dir = TempDir::new("missing");
     let parts: Vec<PathBuf> = [0, 2].iter().map(|&i| shard(&dir, i, 4, &[])).collect();
     let (out, acc) = (dir.join("out.png"), dir.join("out.wtacc"));
-    let o = merge(&parts, &["--out", p(&out), "--partial", p(&acc)]);
+    let o = merge(&dir, &parts, &["--out", p(&out), "--partial", p(&acc)]);
     assert!(!o.status.success());
     let e = String::from_utf8(o.stderr).unwrap();
     assert!(e.contains("missing samples 4..8, 12..16 of 0..16"), "{e}");
@@ -412,8 +351,8 @@ fn merge_refuses_missing_samples_naming_the_shards() {
     );
     // A missing file is named too.
     let gone = dir.join("part-1.wtacc");
-    let e =
-        String::from_utf8(merge(&[parts[0].clone(), gone], &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &[parts[0].clone(), gone], &["--out", p(&out)]).stderr)
+        .unwrap();
     assert!(e.contains("part-1.wtacc: cannot read"), "{e}");
 }
 
@@ -421,12 +360,12 @@ fn merge_refuses_missing_samples_naming_the_shards() {
 fn merge_of_parts_of_different_shard_counts_gives_no_wrong_advice() {
     // Shard 0/2 (samples 0..8) and shard 3/4 (12..16): 8..12 is missing,
     // which is no one shard of either count.
-    let dir = scratch("mixed");
+    let dir = TempDir::new("mixed");
     let half = dir.join("half");
     std::fs::create_dir_all(&half).unwrap();
     let parts = [shard(&half, 0, 2, &[]), shard(&dir, 3, 4, &[])];
     let out = dir.join("out.png");
-    let o = merge(&parts, &["--out", p(&out)]);
+    let o = merge(&dir, &parts, &["--out", p(&out)]);
     assert!(!o.status.success());
     let e = String::from_utf8(o.stderr).unwrap();
     assert!(e.contains("missing samples 8..12 of 0..16"), "{e}");
@@ -436,10 +375,11 @@ fn merge_of_parts_of_different_shard_counts_gives_no_wrong_advice() {
 
 #[test]
 fn allow_partial_writes_and_says_what_is_missing() {
-    let dir = scratch("allow");
+    let dir = TempDir::new("allow");
     let parts: Vec<PathBuf> = [0, 1, 3].iter().map(|&i| shard(&dir, i, 4, &[])).collect();
     let (out, acc) = (dir.join("out.png"), dir.join("out.wtacc"));
     let o = ok(merge(
+        &dir,
         &parts,
         &["--out", p(&out), "--partial", p(&acc), "--allow-partial"],
     ));
@@ -453,7 +393,7 @@ fn allow_partial_writes_and_says_what_is_missing() {
     // The merged partial file plus the missing shard make the whole render.
     let last = shard(&dir, 2, 4, &[]);
     let whole = dir.join("whole.wtacc");
-    ok(merge(&[acc, last], &["--out", p(&whole)]));
+    ok(merge(&dir, &[acc, last], &["--out", p(&whole)]));
     let (_, single_acc) = single(&dir);
     assert_eq!(
         std::fs::read(&whole).unwrap(),
@@ -463,7 +403,7 @@ fn allow_partial_writes_and_says_what_is_missing() {
 
 #[test]
 fn merge_refuses_other_settings_naming_the_file() {
-    let dir = scratch("settings");
+    let dir = TempDir::new("settings");
     let parts: Vec<PathBuf> = (0..4).map(|i| shard(&dir, i, 4, &[])).collect();
     let out = dir.join("out.png");
     let other = dir.join("other");
@@ -485,10 +425,10 @@ fn merge_refuses_other_settings_naming_the_file() {
     for (k, extra) in variants.iter().enumerate() {
         let odd = other.join(format!("odd-{k}.wtacc"));
         let args = [&base[..], extra, &["--shard", "1/4", "--partial", p(&odd)]].concat();
-        ok(wavetrace(&args, &[]));
+        run_ok(&dir, &args);
         let mut mixed = parts.clone();
         mixed[1] = odd;
-        let e = String::from_utf8(merge(&mixed, &["--out", p(&out)]).stderr).unwrap();
+        let e = String::from_utf8(merge(&dir, &mixed, &["--out", p(&out)]).stderr).unwrap();
         assert!(
             e.contains(&format!(
                 "odd-{k}.wtacc: made by a render of another scene or other settings than"
@@ -499,13 +439,13 @@ fn merge_refuses_other_settings_naming_the_file() {
     // Samples 4..8, as shard 1 of 4 holds, but of a 32-spp render.
     let odd = other.join("spp.wtacc");
     let args = ["render", "--width", "16", "--height", "16", "--spp", "32"];
-    ok(wavetrace(
+    run_ok(
+        &dir,
         &[&args[..], &["--samples", "4..8", "--partial", p(&odd)]].concat(),
-        &[],
-    ));
+    );
     let mut mixed = parts.clone();
     mixed[1] = odd;
-    let e = String::from_utf8(merge(&mixed, &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &mixed, &["--out", p(&out)]).stderr).unwrap();
     assert!(
         e.contains("spp.wtacc") && e.contains("32 samples per pixel"),
         "{e}"
@@ -515,7 +455,7 @@ fn merge_refuses_other_settings_naming_the_file() {
 
 #[test]
 fn merge_refuses_truncated_and_corrupt_files_naming_them() {
-    let dir = scratch("truncated");
+    let dir = TempDir::new("truncated");
     let parts: Vec<PathBuf> = (0..4).map(|i| shard(&dir, i, 4, &[])).collect();
     let out = dir.join("out.png");
     let bytes = std::fs::read(&parts[2]).unwrap();
@@ -524,7 +464,7 @@ fn merge_refuses_truncated_and_corrupt_files_naming_them() {
         std::fs::write(&cut, &bytes[..len]).unwrap();
         let mut mixed = parts.clone();
         mixed[2] = cut.clone();
-        let e = String::from_utf8(merge(&mixed, &["--out", p(&out)]).stderr).unwrap();
+        let e = String::from_utf8(merge(&dir, &mixed, &["--out", p(&out)]).stderr).unwrap();
         assert!(e.contains("cut.wtacc:"), "{len} bytes: {e}");
         assert!(!out.exists());
     }
@@ -533,24 +473,19 @@ fn merge_refuses_truncated_and_corrupt_files_naming_them() {
     std::fs::write(&cut, &flipped).unwrap();
     let mut mixed = parts.clone();
     mixed[2] = cut.clone();
-    let e = String::from_utf8(merge(&mixed, &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &mixed, &["--out", p(&out)]).stderr).unwrap();
     assert!(e.contains("cut.wtacc: checksum mismatch"), "{e}");
     assert!(!out.exists());
 }
 
 #[test]
 fn merge_takes_spp_for_parts_that_do_not_record_it() {
-    let dir = scratch("nospp");
+    let dir = TempDir::new("nospp");
     // Partial films saved with Film::save (no AccMeta, as checkpoints of
     // builds before shards were): no spp.
     let scene = Scene::cornell();
-    let mut settings = RenderSettings::for_scene(&scene);
-    (
-        settings.width,
-        settings.height,
-        settings.spp,
-        settings.threads,
-    ) = (8, 8, 8, 1);
+    let mut settings = common::settings(&scene, 8, 8, 8);
+    settings.threads = 1;
     let renderer = Renderer::new(&scene, &settings).unwrap();
     let hash = settings.image_hash(&scene);
     let parts: Vec<PathBuf> = [0..3, 3..8]
@@ -565,16 +500,18 @@ fn merge_takes_spp_for_parts_that_do_not_record_it() {
         })
         .collect();
     let out = dir.join("out.wtacc");
-    let e = String::from_utf8(merge(&parts, &["--out", p(&out)]).stderr).unwrap();
+    let e = String::from_utf8(merge(&dir, &parts, &["--out", p(&out)]).stderr).unwrap();
     assert!(e.contains("pass --spp N"), "{e}");
-    let e = String::from_utf8(merge(&parts, &["--out", p(&out), "--spp", "9"]).stderr).unwrap();
+    let e =
+        String::from_utf8(merge(&dir, &parts, &["--out", p(&out), "--spp", "9"]).stderr).unwrap();
     assert!(e.contains("missing samples 8..9 of 0..9"), "{e}");
-    let e = String::from_utf8(merge(&parts, &["--out", p(&out), "--spp", "7"]).stderr).unwrap();
+    let e =
+        String::from_utf8(merge(&dir, &parts, &["--out", p(&out), "--spp", "7"]).stderr).unwrap();
     assert!(
         e.contains("ckpt-1.wtacc: holds samples up to 8, beyond --spp 7"),
         "{e}"
     );
-    ok(merge(&parts, &["--out", p(&out), "--spp", "8"]));
+    ok(merge(&dir, &parts, &["--out", p(&out), "--spp", "8"]));
     let (merged, meta) = Film::load_with_meta(&out, Some(hash)).unwrap();
     assert_eq!(merged, renderer.render().0);
     assert_eq!(meta.spp, Some(8));

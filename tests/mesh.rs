@@ -2,19 +2,14 @@
 //! normals, MTL materials), transforms, generated meshes, and an error that
 //! names the file and the line for every way a mesh file can be bad.
 
+mod common;
+
+use common::TempDir;
 use glam::Vec3;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use wavetrace::integrator::reference::ReferenceTracer;
 use wavetrace::integrator::sampler::Independent;
 use wavetrace::scene::{Scene, SceneError};
-
-/// A fresh directory for one test's files.
-fn dir(test: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wavetrace-mesh-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 const HEADER: &str = r#"
 [camera]
@@ -46,7 +41,7 @@ fn mesh(file: &str, extra: &str) -> String {
 
 #[test]
 fn quads_and_polygons_are_fan_triangulated() {
-    let d = dir("fan");
+    let d = TempDir::new("fan");
     let obj = "# a quad and a pentagon\n\
                v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
                v 2 0 0\nv 3 0 0\nv 3.5 1 0\nv 2.5 2 0\nv 1.5 1 0\n\
@@ -70,7 +65,7 @@ fn quads_and_polygons_are_fan_triangulated() {
 
 #[test]
 fn negative_indices_and_missing_normals() {
-    let d = dir("neg");
+    let d = TempDir::new("neg");
     // Relative indices, texture coordinates without normals, v//vn without
     // texture coordinates, and a vertex with a w component.
     let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0 1.0\nf -3 -2 -1\n\
@@ -91,7 +86,7 @@ fn negative_indices_and_missing_normals() {
 
 #[test]
 fn mtl_materials_and_fallback() {
-    let d = dir("mtl");
+    let d = TempDir::new("mtl");
     let mtl = "newmtl red\nKd 0.8 0.1 0.1\n\nnewmtl lamp\nKd 1 1 1\nKe 5 4 3\n";
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n\
                f 1 2 3\nusemtl red\nf 2 4 3\nusemtl lamp\nf 1 3 2\n";
@@ -118,7 +113,7 @@ fn mtl_materials_and_fallback() {
 
 #[test]
 fn transforms_scale_rotate_translate() {
-    let d = dir("xf");
+    let d = TempDir::new("xf");
     let obj = "v 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n";
     let body = mesh(
         "m.obj",
@@ -146,7 +141,7 @@ fn transforms_scale_rotate_translate() {
 
 #[test]
 fn generated_meshes() {
-    let d = dir("gen");
+    let d = TempDir::new("gen");
     let body = "[[generate]]\nkind = \"sphere\"\ntriangles = 5000\nmaterial = \"white\"\n\
                 center = [0.0, 1.0, 0.0]\nradius = 0.5\n\n\
                 [[generate]]\nkind = \"terrain\"\ntriangles = 2000\nmaterial = \"white\"\n\
@@ -161,7 +156,7 @@ fn generated_meshes() {
 
 /// Load `obj` (and `mtl`) and return the error, checking its file and line.
 fn obj_error(test: &str, obj: &str, mtl: Option<&str>, file: &str, line: usize) -> SceneError {
-    let d = dir(test);
+    let d = TempDir::new(test);
     let mut files = vec![("m.obj", obj)];
     if let Some(m) = mtl {
         files.push(("m.mtl", m));
@@ -234,7 +229,7 @@ fn errors_name_the_file_and_line() {
         3,
     );
     // Not UTF-8.
-    let d = dir("e12");
+    let d = TempDir::new("e12");
     std::fs::write(d.join("m.obj"), b"v 0 0 0\n\xff\xfe\n").unwrap();
     let e = load(&d, &[], &mesh("m.obj", "material = \"white\"")).unwrap_err();
     assert_eq!(e.line, 2, "{e}");
@@ -242,7 +237,7 @@ fn errors_name_the_file_and_line() {
 
 #[test]
 fn missing_and_unreadable_files() {
-    let d = dir("missing");
+    let d = TempDir::new("missing");
     let e = load(&d, &[], &mesh("nope.obj", "material = \"white\"")).unwrap_err();
     assert!(
         e.file.ends_with("nope.obj") && e.message.contains("cannot read"),
@@ -272,7 +267,7 @@ fn missing_and_unreadable_files() {
 
 #[test]
 fn bad_generate_entries() {
-    let d = dir("badgen");
+    let d = TempDir::new("badgen");
     for (body, what) in [
         ("kind = \"cube\"\ntriangles = 10", "generate[0].kind"),
         ("kind = \"sphere\"\ntriangles = 0", "generate[0].triangles"),
@@ -310,7 +305,7 @@ fn bad_generate_entries() {
 
 #[test]
 fn reference_bvh_and_brute_force_render_the_same_bits() {
-    let d = dir("render");
+    let d = TempDir::new("render");
     let mut body = String::from(
         "[materials.lamp]\nreflectance = [1.0, 1.0, 1.0]\nemission = [4.0, 4.0, 4.0]\n\n\
          [[quad]]\nmaterial = \"lamp\"\n\
@@ -353,7 +348,7 @@ fn shipped_scenes_load() {
 
 #[test]
 fn a_transform_that_overflows_is_an_error_not_a_silent_drop() {
-    let d = dir("overflow");
+    let d = TempDir::new("overflow");
     let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     let e = load(
         &d,

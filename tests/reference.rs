@@ -12,6 +12,8 @@
 //!   against the hard bounds that `cos θ ∈ [0, 1]` puts on it.
 //! - No emission anywhere: every pixel is exactly 0.
 
+mod common;
+
 use glam::Vec3;
 use wavetrace::film::{FIXED_POINT_SCALE, Film};
 use wavetrace::integrator::reference::ReferenceTracer;
@@ -339,8 +341,7 @@ fn a_scene_without_emission_renders_exactly_black() {
         m.emission = Vec3::ZERO;
     }
     for engine in [Engine::Reference, Engine::Wavefront] {
-        let mut settings = RenderSettings::for_scene(&scene);
-        (settings.width, settings.height, settings.spp) = (24, 24, 4);
+        let mut settings = common::settings(&scene, 24, 24, 4);
         settings.threads = 2;
         settings.engine = engine;
         let (film, counters, _) = Renderer::new(&scene, &settings).unwrap().render();
@@ -367,8 +368,7 @@ fn the_lit_cornell_box_is_not_black() {
 }
 
 fn lit_cornell_box_at_depth_1(scene: &Scene, engine: Engine) {
-    let mut settings = RenderSettings::for_scene(scene);
-    (settings.width, settings.height, settings.spp) = (24, 24, 4);
+    let mut settings = common::settings(scene, 24, 24, 4);
     settings.max_depth = 1;
     settings.threads = 2;
     settings.engine = engine;

@@ -6,6 +6,9 @@
 //! found in the broken text itself, so the tests say "the error points at the
 //! line that is wrong", whatever the file looks like.
 
+mod common;
+
+use common::TempDir;
 use glam::Vec3;
 use wavetrace::scene::file::parse;
 use wavetrace::scene::{Scene, SceneError};
@@ -436,10 +439,8 @@ fn zero_max_depth() {
 
 #[test]
 fn unreadable_file() {
-    let path = std::env::temp_dir().join(format!(
-        "wavetrace-test-no-such-dir-{}/scene.toml",
-        std::process::id()
-    ));
+    let dir = TempDir::new("unreadable");
+    let path = dir.join("no-such-dir/scene.toml");
     let e = Scene::load(&path).unwrap_err();
     assert_eq!(e.file, path.display().to_string());
     assert!(e.message.contains("cannot read"), "{e}");
@@ -448,13 +449,11 @@ fn unreadable_file() {
 
 #[test]
 fn a_loaded_file_names_its_path_in_errors() {
-    let dir = std::env::temp_dir().join(format!("wavetrace-test-scene-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("loaded");
     let path = dir.join("bad.toml");
     let text = with("max_depth = 3", "max_depth = 0");
     std::fs::write(&path, &text).unwrap();
     let e = Scene::load(&path).unwrap_err();
-    let _ = std::fs::remove_dir_all(&dir);
     let line = line_of(&text, "max_depth = 0");
     assert!(
         e.to_string()

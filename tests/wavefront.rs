@@ -1,6 +1,9 @@
 //! The wavefront engine against the reference tracer, the SIMD intersector
 //! against the scalar one, and the image against the schedule.
 
+mod common;
+
+use common::TempDir;
 use glam::Vec3;
 use wavetrace::accel::triangle::{
     Hit, LaneHits, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
@@ -131,15 +134,13 @@ fn image_is_independent_of_threads_and_batch_size() {
         );
     }
     // ...and the same film written as PNG gives the same bytes.
-    let dir = std::env::temp_dir().join(format!("wavetrace-wf-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("png");
     let png = |f: &Film, name: &str| {
         let p = dir.join(name);
         wavetrace::output::write_image(&p, f.width, f.height, &f.to_rgb()).unwrap();
         std::fs::read(p).unwrap()
     };
     assert_eq!(png(&base, "a.png"), png(&film(2, 13), "b.png"));
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 #[test]
@@ -264,8 +265,8 @@ fn sample_ranges_ending_at_u32_max_render_exactly_their_samples() {
     // Batches step through the range; near u32::MAX a plain `+` would wrap
     // and start over at sample 0.
     let scene = Scene::cornell();
-    let mut s = RenderSettings::for_scene(&scene);
-    (s.width, s.height, s.spp, s.batch_size) = (3, 2, u32::MAX, 5);
+    let mut s = common::settings(&scene, 3, 2, u32::MAX);
+    s.batch_size = 5;
     let range = u32::MAX - 13..u32::MAX;
     let mut films = Vec::new();
     for engine in [Engine::Wavefront, Engine::Reference] {

@@ -52,8 +52,11 @@ pub fn intersect_sphere<R: Real>(o: V3<R>, d: V3<R>, c: V3<R>, r: R, t_min: R) -
 }
 
 /// The outward unit normal of the sphere of center `c` at the hit `t` of the
-/// ray `o + t·d`: `(o - c) + t·d`, normalised (computed from `o - c` rather
-/// than from the rounded hit point).
+/// ray `o + t·d`: `(o - c) + t·d` (one fused multiply-add per component,
+/// from `o - c` rather than from the rounded hit point), normalised. Its
+/// direction is within about `2 ε (|o - c| / r + 1)` radians of the exact
+/// radius through the point at `t` (`ε` = f32's epsilon: the rounding of
+/// `o - c`).
 #[inline(always)]
 pub fn hit_normal<R: Real>(o: V3<R>, d: V3<R>, t: R, c: V3<R>) -> V3<R> {
     let p = d.mul_add(t, o - c);

@@ -1,10 +1,10 @@
 //! The command line: `wavetrace render ...` (the default command).
 
 mod merge;
-pub mod profile;
-pub mod progress;
+pub(crate) mod profile;
+pub(crate) mod progress;
 mod render;
-pub mod stats;
+pub(crate) mod stats;
 
 use crate::error::Result;
 use clap::{Parser, Subcommand};

@@ -14,6 +14,7 @@
 //! paths.
 
 pub mod bsdf;
+pub mod lights;
 pub mod reference;
 pub mod sampler;
 pub mod wavefront;

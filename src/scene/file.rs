@@ -3,7 +3,7 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{Material, Model, Scene, Triangle};
+use super::{Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Triangle};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
@@ -24,6 +24,10 @@ pub struct SceneError {
     pub field: Option<String>,
     /// What is wrong.
     pub message: String,
+    /// The mesh file's own error, when the problem is in a mesh the scene
+    /// loads (`file` and `line` are then the mesh file's).
+    #[source]
+    pub mesh: Option<Box<super::obj::ObjError>>,
 }
 
 impl fmt::Display for SceneError {
@@ -120,12 +124,18 @@ struct CameraFile {
 struct IntegratorFile {
     #[serde(default = "default_max_depth")]
     max_depth: Spanned<u32>,
+    name: Option<Spanned<String>>,
+    sampler: Option<Spanned<String>>,
+    rr_depth: Option<Spanned<u32>>,
 }
 
 impl Default for IntegratorFile {
     fn default() -> Self {
         Self {
             max_depth: Spanned::new(0..0, default_max_depth().into_inner()),
+            name: None,
+            sampler: None,
+            rr_depth: None,
         }
     }
 }
@@ -167,6 +177,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let at = |span: std::ops::Range<usize>, field: &str, message: String| {
         let (line, column) = line_col(text, span.start);
         SceneError {
+            mesh: None,
             file: file.to_string(),
             line,
             column,
@@ -177,6 +188,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let raw: SceneFile = toml::from_str(text).map_err(|e| {
         let (line, column) = e.span().map_or((0, 0), |s| line_col(text, s.start));
         SceneError {
+            mesh: None,
             file: file.to_string(),
             line,
             column,
@@ -431,6 +443,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         let obj = super::obj::load(&path, with_mtl).map_err(|e| {
             let (line, column) = line_col(text, m.file.span().start);
             SceneError {
+                mesh: Some(Box::new(e.clone())),
                 file: e.file.display().to_string(),
                 line: e.line,
                 column: if e.line > 0 { 1 } else { 0 },
@@ -566,6 +579,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
 
     if triangles.is_empty() {
         return Err(SceneError {
+            mesh: None,
             file: file.to_string(),
             line: 0,
             column: 0,
@@ -584,6 +598,29 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             "must be at least 1".into(),
         ));
     }
+    let named = |v: &Option<Spanned<String>>, field: &str, known: &[&str]| match v {
+        Some(n) if !known.contains(&n.get_ref().as_str()) => Err(at(
+            n.span(),
+            field,
+            format!(
+                "unknown name {:?} (known: {})",
+                n.get_ref(),
+                known.join(", ")
+            ),
+        )),
+        _ => Ok(v.as_ref().map(|n| n.get_ref().clone())),
+    };
+    let integrator = named(&raw.integrator.name, "integrator.name", Integrator::NAMES)?;
+    let sampler = named(
+        &raw.integrator.sampler,
+        "integrator.sampler",
+        SamplerKind::NAMES,
+    )?;
+    let options = RenderOptions {
+        integrator: integrator.and_then(|n| Integrator::from_name(&n)),
+        sampler: sampler.and_then(|n| SamplerKind::from_name(&n)),
+        rr_depth: raw.integrator.rr_depth.as_ref().map(|d| *d.get_ref()),
+    };
     Ok(Scene {
         name: raw.name.unwrap_or_else(|| {
             std::path::Path::new(file)
@@ -594,6 +631,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         materials,
         triangles,
         max_depth,
+        options,
     })
 }
 

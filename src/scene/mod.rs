@@ -8,12 +8,14 @@ pub mod file;
 pub mod material;
 pub mod mesh;
 pub mod obj;
+pub mod options;
 
 use camera::Camera;
 use glam::Vec3;
 
 pub use file::SceneError;
 pub use material::{Material, Model};
+pub use options::{Integrator, RenderOptions, SamplerKind};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
@@ -79,6 +81,8 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     /// Default maximum path depth (the camera ray is depth 0).
     pub max_depth: u32,
+    /// What the scene's `[integrator]` table asks for besides the depth.
+    pub options: RenderOptions,
 }
 
 impl Scene {
@@ -91,6 +95,7 @@ impl Scene {
     /// Read a scene from a TOML file.
     pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            mesh: None,
             file: path.display().to_string(),
             line: 0,
             column: 0,

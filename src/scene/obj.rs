@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 /// What is wrong with a mesh file, and where: `file:line` (line 0 when the
 /// problem has no line).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}:{line}: {message}", file.display())]
 pub struct ObjError {
     /// The OBJ or MTL file.
     pub file: PathBuf,

@@ -1,15 +1,12 @@
 //! The ideal diffuse (Lambertian) model: BRDF `ρ/π` on both sides of the
-//! surface (two-sided: light and viewer on the same side, either side).
+//! surface.
 //!
-//! - [`sample_uniform`]: the report's uniform hemisphere sampling (pdf
-//!   `1/2π`), what the engines use today;
-//! - [`sample_cosine`]: cosine-weighted sampling (pdf `cos θ/π`, weight `ρ`);
-//! - [`eval`], [`pdf`], [`pdf_uniform`]: the BRDF and the two densities for
-//!   a given pair of directions (for next-event estimation and MIS).
+//! Every function takes the normal facing the incoming ray (the side of
+//! `wo`, as [`facing`](super::facing) returns it): reflection happens on
+//! that side, and there is none on the other.
 
-use super::{BsdfSample, tangents, to_world};
+use super::{BsdfSample, local_to_world, tangents};
 use crate::math::{Real, V3, sin_cos_2pi};
-use std::f32::consts::PI;
 
 /// The report's sampling routine: a direction uniform on the hemisphere of
 /// `n` (pdf `1/2π`), from two uniform numbers `u = [X1, X2]`, weighted for
@@ -28,72 +25,66 @@ pub fn sample_uniform<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
     }
 }
 
-/// Cosine-weighted sampling (Malley's method): a point uniform on the unit
-/// disk (`r = sqrt(X1)`, `φ = 2π·X2`) lifted to the hemisphere of the
-/// facing normal `n`, so `cos θ = sqrt(1 - X1)` and the density is
-/// `cos θ / π`; the BRDF value is `f = ρ/π` (`rho` divided by `π`, as the
-/// engines compute it). The weight `f · cos / pdf` is `ρ` up to rounding.
-///
-/// `X1` in `[0, 1)` keeps `cos θ` and `pdf` strictly positive. The local
-/// frame is [`uniform_hemisphere`]'s.
+/// Cosine-weighted sampling: a direction on the hemisphere of `n` with
+/// density `cos θ / π`, from two uniform numbers (Malley's method: a point
+/// of the unit disk, by Shirley and Chiu's concentric map, lifted to the
+/// hemisphere), weighted for the BRDF value `f = ρ/π`.
 #[inline(always)]
-pub fn sample_cosine<R: Real>(n: V3<R>, rho: V3<R>, u: [R; 2]) -> BsdfSample<R> {
-    let one = R::splat(1.0);
-    let cos = (one - u[0]).sqrt();
-    let r = u[0].sqrt();
-    let (sin_phi, cos_phi) = sin_cos_2pi(u[1]);
+pub fn sample_cosine<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
+    let (one, zero) = (R::splat(1.0), R::splat(0.0));
+    // The square [-1, 1]² to the unit disk: (r, φ) by wedges.
+    let a = u[0].mul_add(R::splat(2.0), -one);
+    let b = u[1].mul_add(R::splat(2.0), -one);
+    let wide = b.abs().lt(a.abs());
+    let r = R::select(wide, a, b);
+    // φ / 2π: (b/a)/8 in the wedges around ±x, 1/4 - (a/b)/8 around ±y.
+    let safe = |x: R| R::select(x.eq(zero), one, x);
+    let turn = R::select(
+        wide,
+        b / safe(a) * R::splat(0.125),
+        R::splat(0.25) - a / safe(b) * R::splat(0.125),
+    );
+    let (sin_phi, cos_phi) = sin_cos_2pi(turn);
+    let (dx, dz) = (r * cos_phi, r * sin_phi);
+    let cos = (-dx).mul_add(dx, (-dz).mul_add(dz, one));
+    let cos = R::select(cos.lt(zero), zero, cos).sqrt();
     BsdfSample {
-        wi: to_world(n, tangents(n), r * cos_phi, cos, r * sin_phi),
-        f: brdf(rho),
+        wi: to_world(n, dx, cos, dz),
+        f,
         cos,
-        pdf: cos * R::splat(1.0 / PI),
+        pdf: cos * R::splat(std::f32::consts::FRAC_1_PI),
         delta: R::splat_mask(false),
     }
 }
 
-/// `ρ/π` per channel, a division by `π` (correctly rounded) as the engines
-/// compute the diffuse BRDF.
+/// The diffuse BRDF `f = ρ/π` (given as `f`) for the direction `wi`, with
+/// `n` the normal facing the incoming ray: `(f · cos θ, cos θ)` on that
+/// side, zero on the other (diffuse reflection never transmits).
 #[inline(always)]
-fn brdf<R: Real>(rho: V3<R>) -> V3<R> {
-    let pi = R::splat(PI);
-    V3::new(rho.x / pi, rho.y / pi, rho.z / pi)
-}
-
-/// The cosines of `wo` and `wi` with `n`, and whether the two lie strictly
-/// on the same side of the surface.
-#[inline(always)]
-fn same_side<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>) -> (R::Mask, R) {
+pub fn eval<R: Real>(n: V3<R>, f: V3<R>, wi: V3<R>) -> (V3<R>, R) {
     let zero = R::splat(0.0);
-    let (co, ci) = (n.dot(wo), n.dot(wi));
-    let same = (zero.lt(co) & zero.lt(ci)) | (co.lt(zero) & ci.lt(zero));
-    (same, ci.abs())
+    let cos = n.dot(wi);
+    let cos = R::select(cos.lt(zero), zero, cos);
+    (f.scale(cos), cos)
 }
 
-/// The BRDF value for the pair `(wo, wi)`: `ρ/π` where `wi` lies strictly on
-/// the side of `wo` (the model is two-sided), `0` elsewhere (transmission,
-/// or either direction in the plane). `n` is either unit normal of the
-/// surface: facing or geometric, the answer is the same.
+/// The density of [`sample_cosine`] for the direction `wi` (`n` the
+/// normal facing the incoming ray): `max(0, cos θ) / π`.
 #[inline(always)]
-pub fn eval<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, rho: V3<R>) -> V3<R> {
-    let (same, _) = same_side(n, wo, wi);
-    let zero = V3::new(R::splat(0.0), R::splat(0.0), R::splat(0.0));
-    V3::select(same, brdf(rho), zero)
+pub fn pdf_cosine<R: Real>(n: V3<R>, wi: V3<R>) -> R {
+    let zero = R::splat(0.0);
+    let cos = n.dot(wi);
+    R::select(cos.lt(zero), zero, cos) * R::splat(std::f32::consts::FRAC_1_PI)
 }
 
-/// The density [`sample_cosine`] draws `wi` with, given `wo`: `|cos θi|/π`
-/// on the side of `wo`, `0` elsewhere. `n` as in [`eval`].
+/// The density of [`sample_uniform`] for the direction `wi` (`n` the
+/// normal facing the incoming ray): `1/2π` where `cos θ > 0`, zero
+/// elsewhere.
 #[inline(always)]
-pub fn pdf<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>) -> R {
-    let (same, cos) = same_side(n, wo, wi);
-    R::select(same, cos * R::splat(1.0 / PI), R::splat(0.0))
-}
-
-/// The density [`sample_uniform`] draws `wi` with, given `wo`: `1/2π` on
-/// the side of `wo`, `0` elsewhere. `n` as in [`eval`].
-#[inline(always)]
-pub fn pdf_uniform<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>) -> R {
-    let (same, _) = same_side(n, wo, wi);
-    R::select(same, R::splat(1.0 / (2.0 * PI)), R::splat(0.0))
+pub fn pdf_uniform<R: Real>(n: V3<R>, wi: V3<R>) -> R {
+    let zero = R::splat(0.0);
+    let above = zero.lt(n.dot(wi));
+    R::select(above, R::splat(1.0 / (2.0 * std::f32::consts::PI)), zero)
 }
 
 /// A direction on the hemisphere around unit normal `n`, uniform in solid
@@ -101,15 +92,23 @@ pub fn pdf_uniform<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>) -> R {
 ///
 /// In the local frame with `n` as the y axis: `cos θ = X1`,
 /// `sin θ = sqrt(1 - X1²)`, `φ = 2π·X2`,
-/// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`, taken to the world by
-/// [`to_world`] in the frame of [`tangents`] (Scratchapixel's, the report's
-/// reference \[3\]).
+/// `(x, y, z) = (sin θ cos φ, X1, sin θ sin φ)`. The frame around `n` is
+/// Scratchapixel's (the report's reference \[3\]): a tangent `nt` orthogonal
+/// to `n` built from its two largest components, and `nb = n × nt`.
 #[inline(always)]
 pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
     let sin_theta = (-x1).mul_add(x1, R::splat(1.0)).sqrt();
     let (sin_phi, cos_phi) = sin_cos_2pi(x2);
-    let (lx, ly, lz) = (sin_theta * cos_phi, x1, sin_theta * sin_phi);
-    to_world(n, tangents(n), lx, ly, lz)
+    to_world(n, sin_theta * cos_phi, x1, sin_theta * sin_phi)
+}
+
+/// The direction with coordinates `(lx, ly, lz)` in the frame of unit
+/// normal `n` (its y axis): [`local_to_world`] in the frame of
+/// [`tangents`] (Scratchapixel's, the report's reference \[3\]), i.e.
+/// `nb·lx + n·ly + nt·lz`.
+#[inline(always)]
+pub fn to_world<R: Real>(n: V3<R>, lx: R, ly: R, lz: R) -> V3<R> {
+    local_to_world(n, tangents(n), lx, ly, lz)
 }
 
 #[cfg(test)]

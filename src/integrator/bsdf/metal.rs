@@ -33,7 +33,7 @@
 //! the BRDF is zero unless both `wo` and `wi` are strictly above the
 //! surface.
 
-use super::{BsdfSample, reflect, tangents, to_world};
+use super::{BsdfSample, local_to_world, reflect, tangents};
 use crate::math::{Real, V3, sin_cos_2pi};
 use std::f32::consts::PI;
 
@@ -172,7 +172,7 @@ pub fn sample<R: Real>(n: V3<R>, wo: V3<R>, alpha: R, tint: V3<R>, u: [R; 2]) ->
     let co = n.dot(wo);
     let wo_local = V3::new(nb.dot(wo), co, nt.dot(wo));
     let (m, d, n2) = sample_visible_normal(wo_local, a, u);
-    let wi = reflect(wo, to_world(n, frame, m.x, m.y, m.z));
+    let wi = reflect(wo, local_to_world(n, frame, m.x, m.y, m.z));
     let ci = n.dot(wi);
     let valid = zero.lt(co) & zero.lt(ci) & zero.lt(n2);
     let (so, si) = (smith_s(co, a2), smith_s(ci, a2));

@@ -120,6 +120,6 @@ pub fn tangents<R: Real>(n: V3<R>) -> (V3<R>, V3<R>) {
 /// of [`tangents`]: `nb · lx + n · ly + nt · lz` (the normal is the local
 /// y axis, as in the report's hemisphere sampling).
 #[inline(always)]
-pub fn to_world<R: Real>(n: V3<R>, (nt, nb): (V3<R>, V3<R>), lx: R, ly: R, lz: R) -> V3<R> {
+pub fn local_to_world<R: Real>(n: V3<R>, (nt, nb): (V3<R>, V3<R>), lx: R, ly: R, lz: R) -> V3<R> {
     nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
 }

@@ -99,3 +99,68 @@ fn gather8(col: &[f32], rows: &[usize; 8]) -> f32x8 {
         col[r[0]], col[r[1]], col[r[2]], col[r[3]], col[r[4]], col[r[5]], col[r[6]], col[r[7]],
     ])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::sampler::{Independent, PathRng};
+    use crate::scene::Scene;
+
+    /// A queue of `n` paths that hit Cornell box triangles, with varied
+    /// origins, directions and throughputs.
+    fn queue(n: usize, sampler: &Independent) -> PathQueue<PathRng> {
+        let mut q = PathQueue::with_capacity(n.max(1));
+        q.set_len(n);
+        let mut rng = PathRng::new(5, 5, 5);
+        for i in 0..n {
+            q.pixel[i] = i as u32;
+            q.sampler[i] = sampler.start(i as u32, 3);
+            for c in 0..3 {
+                q.o[c][i] = rng.next_f32() - 0.5;
+                q.d[c][i] = rng.next_f32() - 0.5;
+                q.beta[c][i] = rng.next_f32();
+            }
+            q.t[i] = rng.next_f32();
+            q.hit[i] = (i * 7 % 32) as u32;
+        }
+        q
+    }
+
+    #[test]
+    fn every_row_bounces_as_the_scalar_routine_whatever_the_tail() {
+        let tables = Tables::new(&Scene::cornell());
+        let sampler = Independent::new(11);
+        for n in 0..=17 {
+            let before = queue(n, &sampler);
+            let mut after = before.clone();
+            diffuse(&mut after, 0..n, &sampler, &tables);
+            for i in 0..n {
+                // The same row, bounced by the scalar (f32) routine.
+                let tri = before.hit[i] as usize;
+                let col = |c: &[Vec<f32>; 3]| V3::new(c[0][i], c[1][i], c[2][i]);
+                let of_tri = |c: &[Vec<f32>; 3]| V3::new(c[0][tri], c[1][tri], c[2][tri]);
+                let (normal, brdf) = (of_tri(&tables.normals), of_tri(&tables.brdf));
+                let mut path = before.sampler[i];
+                let u = sampler.next_2d(&mut path);
+                let (o, d) = (col(&before.o), col(&before.d));
+                let (_, n_facing) = facing(normal, d);
+                let s = diffuse::sample_uniform(n_facing, brdf, u);
+                let want = [
+                    hit_point(o, d, before.t[i]),
+                    s.wi,
+                    s.weigh(col(&before.beta)),
+                ];
+                let got = [col(&after.o), col(&after.d), col(&after.beta)];
+                for (w, g) in want.iter().zip(&got) {
+                    assert_eq!(
+                        [w.x, w.y, w.z].map(f32::to_bits),
+                        [g.x, g.y, g.z].map(f32::to_bits),
+                        "{n} rows: row {i}"
+                    );
+                }
+                assert_eq!(after.sampler[i], path, "row {i} drew two numbers");
+                assert_eq!(after.pixel[i], before.pixel[i]);
+            }
+        }
+    }
+}

@@ -1,15 +1,17 @@
 //! The wavefront engine: paths move in batches through named stages.
 //!
-//! For each batch of (pixel, sample) pairs, [`generate`](generate::generate)
-//! camera rays into a [`PathQueue`], then once per depth:
+//! For each batch of (pixel, sample) pairs, *generate* camera rays into a
+//! path queue (one plain column per field), then once per depth:
 //!
-//! 1. [`intersect`](intersect::intersect): the closest hit of every ray
-//!    (8 triangles at a time);
-//! 2. [`shade`](shade::shade): the emission each path sees;
-//! 3. [`retire`](retire::retire): paths that escaped or reached the
-//!    maximum depth go into the film and leave the queue;
-//! 4. [`bounce`](bounce::bounce): the live paths, grouped by material
-//!    model, scatter: next direction and throughput, 8 paths at a time.
+//! 1. *intersect*: the closest hit of every ray (8 triangles at a time);
+//! 2. *shade*: the emission each path sees;
+//! 3. *retire*: paths that escaped or reached the maximum depth go into
+//!    the film and leave the queue;
+//! 4. *bounce*: the live paths, grouped by material model, scatter: next
+//!    direction and throughput, 8 paths at a time.
+//!
+//! Each stage is one file of this module and one [`Stage`] in the timings;
+//! [`WavefrontEngine::render_tile`]'s depth loop reads as the list above.
 //!
 //! Threads take tiles of pixels; a tile's batches own their queues and
 //! write the tile's pixel sums without locks. Every number a path draws is
@@ -17,13 +19,13 @@
 //! exact integers, so the image is the same whatever the thread count,
 //! the batch size or the schedule.
 
-pub mod bounce;
-pub mod generate;
-pub mod intersect;
-pub mod queue;
-pub mod retire;
-pub mod shade;
-pub mod tables;
+pub(crate) mod bounce;
+pub(crate) mod generate;
+pub(crate) mod intersect;
+pub(crate) mod queue;
+pub(crate) mod retire;
+pub(crate) mod shade;
+pub(crate) mod tables;
 
 use crate::accel::bvh::Bvh;
 use crate::integrator::sampler::Sampler;

@@ -1,0 +1,88 @@
+//! The render options a scene file (its `[integrator]` table), a profile
+//! or the command line can name: the estimator and where its numbers come
+//! from. The integrator layer gives them their meaning.
+
+/// Which estimator of the rendering equation a render uses. Every one
+/// converges to the same image (max depth counts segments the same way
+/// for all of them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// The report's estimator exactly: directions uniform on the
+    /// hemisphere, light found only by chance.
+    Report,
+    /// Directions drawn by the BSDF (cosine-weighted for diffuse), light
+    /// found only by chance.
+    Bsdf,
+    /// Next-event estimation: at every vertex a point on an emitter is
+    /// sampled and a shadow ray traced, combined with the BSDF-sampled
+    /// direction by multiple importance sampling (power heuristic).
+    Nee,
+}
+
+impl Integrator {
+    /// Every integrator's name.
+    pub const NAMES: &[&str] = &["report", "bsdf", "nee"];
+
+    /// The integrator named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "report" => Some(Self::Report),
+            "bsdf" => Some(Self::Bsdf),
+            "nee" => Some(Self::Nee),
+            _ => None,
+        }
+    }
+
+    /// The integrator's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Report => "report",
+            Self::Bsdf => "bsdf",
+            Self::Nee => "nee",
+        }
+    }
+}
+
+/// Where a render's numbers come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SamplerKind {
+    /// Independent uniform numbers: a PCG stream per (seed, pixel, sample).
+    Independent,
+    /// Owen-scrambled Sobol points.
+    Sobol,
+}
+
+impl SamplerKind {
+    /// Every sampler's name.
+    pub const NAMES: &[&str] = &["independent", "sobol"];
+
+    /// The sampler named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "independent" => Some(Self::Independent),
+            "sobol" => Some(Self::Sobol),
+            _ => None,
+        }
+    }
+
+    /// The sampler's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Independent => "independent",
+            Self::Sobol => "sobol",
+        }
+    }
+}
+
+/// What a scene file's `[integrator]` table asks for besides the maximum
+/// depth; `None` leaves the
+/// choice to the profile, the command line or the built-in default.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RenderOptions {
+    /// The estimator.
+    pub integrator: Option<Integrator>,
+    /// The sampler.
+    pub sampler: Option<SamplerKind>,
+    /// The depth from which Russian roulette may end paths.
+    pub rr_depth: Option<u32>,
+}

@@ -1,0 +1,329 @@
+//! Plumbing shared by the integration tests: fresh temp directories, running
+//! the `wavetrace` binary as a user (or a farm) would, and small settings.
+//!
+//! Each test file that says `mod common;` compiles its own copy of this
+//! module and uses only part of it, hence the `allow(dead_code)`.
+
+#![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::fmt::Debug;
+use std::io::Read;
+use std::ops::Deref;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+use wavetrace::film::Film;
+use wavetrace::render::RenderSettings;
+use wavetrace::scene::Scene;
+
+/// The `wavetrace` binary under test.
+pub const BIN: &str = env!("CARGO_BIN_EXE_wavetrace");
+
+/// How long a run of the binary may take before a test gives up on it.
+pub const PATIENCE: Duration = Duration::from_secs(120);
+
+/// The environment variables through which a scheduler (Slurm, a Kubernetes
+/// Indexed Job) picks the shard and the threads. Every run of the binary has
+/// them removed, so the tests do not depend on where they run; a test that
+/// is about them sets them with [`run_env`].
+pub const SCHEDULER_VARS: [&str; 7] = [
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_COUNT",
+    "SLURM_ARRAY_TASK_MIN",
+    "SLURM_ARRAY_TASK_MAX",
+    "SLURM_ARRAY_TASK_STEP",
+    "SLURM_CPUS_PER_TASK",
+    "JOB_COMPLETION_INDEX",
+];
+
+// --- Temp directories ---
+
+/// A fresh, empty directory for one test, removed (with what is in it) when
+/// dropped. It derefs to its [`Path`], so `dir.join("x.png")` and `&dir`
+/// where a `&Path` is wanted both work.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// A new directory named after the test file, `name`, the process and a
+    /// counter, so no two tests (nor two runs at once) share one. It lies
+    /// under Cargo's `CARGO_TARGET_TMPDIR` (`target/tmp`), or the system's
+    /// temp dir where that is not set.
+    pub fn new(name: &str) -> Self {
+        static COUNT: AtomicUsize = AtomicUsize::new(0);
+        let root = option_env!("CARGO_TARGET_TMPDIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(std::env::temp_dir);
+        let dir = root.join(format!(
+            "wavetrace-{}-{name}-{}-{}",
+            env!("CARGO_CRATE_NAME"),
+            std::process::id(),
+            COUNT.fetch_add(1, Ordering::Relaxed)
+        ));
+        // Left over by an earlier process of the same id.
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// The names of the entries in the directory, sorted.
+    pub fn files(&self) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(&self.0)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+}
+
+impl Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A path as the `&str` a command line takes.
+pub fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+// --- Running the binary ---
+
+/// `wavetrace ARGS`, ready to run in `dir`: the [`SCHEDULER_VARS`] removed,
+/// stdin null, stdout and stderr captured.
+pub fn wavetrace<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> Command {
+    let mut cmd = Command::new(BIN);
+    cmd.current_dir(dir)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for var in SCHEDULER_VARS {
+        cmd.env_remove(var);
+    }
+    cmd
+}
+
+/// Runs `cmd` to the end and returns its output; if it is still running
+/// after `limit`, kills it and panics with what it printed.
+pub fn finish(cmd: &mut Command, limit: Duration) -> Output {
+    let mut child = cmd.spawn().unwrap();
+    // Read the pipes while waiting, so a chatty run cannot fill one and
+    // stall until the limit.
+    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            if let Some(mut pipe) = pipe {
+                pipe.read_to_end(&mut bytes).unwrap();
+            }
+            bytes
+        })
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as _));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as _));
+    let status = wait_within(&mut child, limit);
+    let output = Output {
+        status: status.unwrap_or_else(|| child.wait().unwrap()),
+        stdout: stdout.join().unwrap(),
+        stderr: stderr.join().unwrap(),
+    };
+    if status.is_none() {
+        let args: Vec<_> = cmd.get_args().collect();
+        panic!(
+            "wavetrace {args:?} still running after {limit:?}, killed\n{}",
+            text(&output)
+        );
+    }
+    output
+}
+
+/// Waits for `child` to exit, at most `limit`; kills it and returns `None`
+/// if it has not by then.
+pub fn wait_within(child: &mut Child, limit: Duration) -> Option<std::process::ExitStatus> {
+    let start = Instant::now();
+    let mut nap = Duration::from_millis(1);
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return Some(status);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            return None;
+        }
+        std::thread::sleep(nap);
+        nap = (nap * 2).min(Duration::from_millis(10));
+    }
+}
+
+/// Runs `wavetrace ARGS` in `dir` (see [`wavetrace`]), killed after `limit`.
+pub fn run_with_limit<S: AsRef<OsStr>>(dir: &Path, args: &[S], limit: Duration) -> Output {
+    finish(&mut wavetrace(dir, args), limit)
+}
+
+/// Runs `wavetrace ARGS` in `dir` (see [`wavetrace`]), killed after
+/// [`PATIENCE`].
+pub fn run<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> Output {
+    run_with_limit(dir, args, PATIENCE)
+}
+
+/// [`run`] with the environment variables `env` set (on top of the
+/// [`SCHEDULER_VARS`] removed).
+pub fn run_env<S: AsRef<OsStr>>(dir: &Path, args: &[S], env: &[(&str, &str)]) -> Output {
+    finish(wavetrace(dir, args).envs(env.iter().copied()), PATIENCE)
+}
+
+/// A run that must succeed; returns its output.
+pub fn run_ok<S: AsRef<OsStr> + Debug>(dir: &Path, args: &[S]) -> Output {
+    let o = run(dir, args);
+    assert!(
+        o.status.success(),
+        "wavetrace {args:?} failed: {}",
+        text(&o)
+    );
+    o
+}
+
+/// A run that must be refused (exit non-zero); returns its stderr.
+pub fn run_refused<S: AsRef<OsStr> + Debug>(dir: &Path, args: &[S]) -> String {
+    let o = run(dir, args);
+    assert!(!o.status.success(), "wavetrace {args:?} was not refused");
+    stderr(&o)
+}
+
+/// Asserts that a run succeeded; returns its output.
+pub fn ok(o: Output) -> Output {
+    assert!(o.status.success(), "wavetrace failed: {}", text(&o));
+    o
+}
+
+/// Asserts that a run was refused (exit non-zero); returns its stderr.
+pub fn refused(o: Output) -> String {
+    assert!(
+        !o.status.success(),
+        "wavetrace was not refused: {}",
+        text(&o)
+    );
+    stderr(&o)
+}
+
+/// What a run wrote to stdout.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// What a run wrote to stderr.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A run's exit status, stdout and stderr, for failure messages.
+pub fn text(o: &Output) -> String {
+    format!(
+        "status {:?}\nstdout: {}\nstderr: {}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+// --- Small settings ---
+
+/// The tiny render the command-line tests ask for: 16×12 pixels at 2
+/// samples per pixel, the same render as [`tiny`].
+pub const TINY: [&str; 6] = ["--width", "16", "--height", "12", "--spp", "2"];
+
+/// `scene`'s own settings ([`RenderSettings::for_scene`]: its max depth,
+/// seed 0, every core, the default engine) at `width`×`height` pixels and
+/// `spp` samples per pixel.
+pub fn settings(scene: &Scene, width: u32, height: u32, spp: u32) -> RenderSettings {
+    let mut s = RenderSettings::for_scene(scene);
+    (s.width, s.height, s.spp) = (width, height, spp);
+    s
+}
+
+/// The [`TINY`] render of `scene`: 16×12 pixels, 2 samples per pixel.
+pub fn tiny(scene: &Scene) -> RenderSettings {
+    settings(scene, 16, 12, 2)
+}
+
+/// The samples per pixel an accumulation file (checkpoint, partial file)
+/// holds.
+pub fn spp_of(file: &Path) -> u64 {
+    Film::load(file, None).unwrap().0.samples_per_pixel()
+}
+
+/// The long render of the checkpoint and signal tests: `wavetrace` with
+/// [`SETTINGS`](long_render::SETTINGS) unless the arguments give them.
+pub mod long_render {
+    use super::*;
+
+    /// Small with a fixed seed; at [`SPP`] about a second of work on one
+    /// thread, so that signals find it part-way.
+    pub const SETTINGS: &[&str] = &[
+        "--width",
+        "40",
+        "--height",
+        "40",
+        "--seed",
+        "7",
+        "--max-depth",
+        "3",
+    ];
+
+    /// The samples per pixel of the whole render.
+    pub const SPP: &str = "6000";
+
+    /// `args` after those of [`SETTINGS`] that `args` do not give.
+    pub fn args<'a>(args: &[&'a str]) -> Vec<&'a str> {
+        let mut all: Vec<&str> = SETTINGS
+            .chunks(2)
+            .filter(|pair| !args.contains(&pair[0]))
+            .flatten()
+            .copied()
+            .collect();
+        all.extend_from_slice(args);
+        all
+    }
+
+    /// `wavetrace` with [`SETTINGS`] and `args`, ready to run in `dir`
+    /// (see [`wavetrace`](super::wavetrace)).
+    pub fn command(dir: &Path, args: &[&str]) -> Command {
+        super::wavetrace(dir, &self::args(args))
+    }
+
+    /// Runs to the end, killed after [`PATIENCE`].
+    pub fn run(dir: &Path, args: &[&str]) -> Output {
+        super::run(dir, &self::args(args))
+    }
+
+    /// Runs to the end, which must succeed.
+    pub fn run_ok(dir: &Path, args: &[&str]) -> Output {
+        let o = run(dir, args);
+        assert!(
+            o.status.success(),
+            "wavetrace {args:?} failed: {}",
+            text(&o)
+        );
+        o
+    }
+}
