@@ -336,6 +336,35 @@ mod tests {
     }
 
     #[test]
+    fn max_min_and_masks_simd_equal_scalar_bitwise() {
+        let vals = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -2.5,
+            f32::NAN,
+            f32::INFINITY,
+            1e-40,
+            -1e30,
+        ];
+        for &a in &vals {
+            for &b in &vals {
+                let (a8, b8) = (f32x8::splat(a), f32x8::splat(b));
+                let max8 = Real::max(a8, b8).to_array()[3];
+                let min8 = Real::min(a8, b8).to_array()[5];
+                assert_eq!(Real::max(a, b).to_bits(), max8.to_bits(), "max({a}, {b})");
+                assert_eq!(Real::min(a, b).to_bits(), min8.to_bits(), "min({a}, {b})");
+                // The documented definition.
+                let want = if a < b { b } else { a };
+                assert_eq!(Real::max(a, b).to_bits(), want.to_bits());
+            }
+        }
+        assert!(<f32 as Real>::splat_mask(true) && !<f32 as Real>::splat_mask(false));
+        assert!(<f32x8 as Real>::splat_mask(true).all());
+        assert!(!<f32x8 as Real>::splat_mask(false).any());
+    }
+
+    #[test]
     fn sin_cos_simd_equals_scalar_bitwise() {
         for i in 0..10_000 {
             let xs: [f32; 8] = std::array::from_fn(|l| ((i * 8 + l) as f32 * 0.618_034) % 1.0);

@@ -60,8 +60,9 @@ pub fn refract<R: Real>(wo: V3<R>, n: V3<R>, cos_i: R, inv_eta: R, cos_t: R) -> 
 /// Scattering by the interface, from one uniform number `u` in `[0, 1)`.
 ///
 /// `n` is the *geometric* unit normal, pointing to the outside (index 1);
-/// `wo` is on the outside where `n · wo > 0` (the ray arrives on the front)
-/// and inside otherwise. `ior` is the medium's index (any positive value;
+/// `wo` is on the outside where `n · wo > 0` (the ray arrives on the front,
+/// as [`facing`](super::facing) decides it) and inside otherwise (`n · wo = 0`
+/// included: a tangent `wo` from inside is totally reflected, onto itself). `ior` is the medium's index (any positive value;
 /// below 1 the medium is optically thinner than the outside), `tint` the
 /// transmittance tint (white for clear glass).
 ///

@@ -47,18 +47,28 @@ pub fn clamp_alpha<R: Real>(alpha: R) -> R {
     R::splat(ALPHA_MIN).max(alpha)
 }
 
-/// `S(c) = sqrt(c² + α² (1 - c²))` for a cosine `c` (see the module
-/// documentation): `c (1 + Λ)·2 - c`.
+/// `S(c) = sqrt(c² + α² (1 - c²))` for a cosine `c` (`a2 = α²`): the
+/// Smith `Λ(c) = (S(c)/c - 1) / 2` without the division.
 #[inline(always)]
 fn smith_s<R: Real>(c: R, a2: R) -> R {
     let s2 = (-c).mul_add(c, R::splat(1.0)).max(R::splat(0.0));
     a2.mul_add(s2, c * c).sqrt()
 }
 
-/// The GGX normal distribution `D` at the direction of the unnormalised
-/// half vector `h` (`a2 = α²`, `n` unit).
+/// The GGX normal distribution `D` at the direction of the unnormalised,
+/// nonzero half vector `h`, for the unit normal `n` and roughness `alpha`
+/// (clamped): `α² |h|⁴ / (π (α² (n·h)² + |n×h|²)²)`, which is
+/// `α² / (π (α² cos²θh + sin²θh)²)` without normalising `h` and without
+/// the cancellation of `1 - cos²θh`. Symmetric in `±h`.
 #[inline(always)]
-pub fn ndf<R: Real>(n: V3<R>, h: V3<R>, a2: R) -> R {
+pub fn ndf<R: Real>(n: V3<R>, h: V3<R>, alpha: R) -> R {
+    let a = clamp_alpha(alpha);
+    ndf_a2(n, h, a * a)
+}
+
+/// [`ndf`] with `a2 = α²` given.
+#[inline(always)]
+fn ndf_a2<R: Real>(n: V3<R>, h: V3<R>, a2: R) -> R {
     let hn = n.dot(h);
     let t = n.cross(h);
     let q = a2.mul_add(hn * hn, t.dot(t));
@@ -94,7 +104,7 @@ pub fn eval<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, alpha: R, tint: V3<R>) -> V
     let a = clamp_alpha(alpha);
     let a2 = a * a;
     let (valid, co, ci) = cosines(n, wo, wi);
-    let d = ndf(n, wo + wi, a2);
+    let d = ndf_a2(n, wo + wi, a2);
     let (so, si) = (smith_s(co, a2), smith_s(ci, a2));
     // Symmetric in (co, so) ↔ (ci, si): the sum's two products commute.
     let v = d / ((co * si + ci * so) * R::splat(2.0));
@@ -111,7 +121,7 @@ pub fn pdf<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, alpha: R) -> R {
     let a = clamp_alpha(alpha);
     let a2 = a * a;
     let (valid, co, _) = cosines(n, wo, wi);
-    let d = ndf(n, wo + wi, a2);
+    let d = ndf_a2(n, wo + wi, a2);
     let p = d / ((co + smith_s(co, a2)) * R::splat(2.0));
     R::select(valid, p, R::splat(0.0))
 }

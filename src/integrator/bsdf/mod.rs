@@ -36,10 +36,12 @@ use crate::math::{Real, V3};
 /// The contract, lane by lane:
 ///
 /// - **Non-delta lobes** (`delta` false: [`diffuse`], [`metal`]): `f` is
-///   the BSDF value for `(wo, wi)` (what the model's `eval` returns, up to
-///   rounding), `cos` is `|cos θ|` of `wi` with the normal, and `pdf` is
-///   the solid-angle density `wi` was drawn with — the density to use for
-///   multiple importance sampling (what the model's `pdf` returns).
+///   the BSDF value for `(wo, wi)` (up to rounding, what
+///   [`metal::eval`] returns, and what [`diffuse::eval`] returns before its
+///   factor `cos θ`), `cos` is `|cos θ|` of `wi` with the normal, and `pdf`
+///   is the solid-angle density `wi` was drawn with — the density to use
+///   for multiple importance sampling (what [`metal::pdf`],
+///   [`diffuse::pdf_cosine`] or [`diffuse::pdf_uniform`] returns).
 /// - **Delta lobes** (`delta` true: [`mirror`], [`glass`]): the direction
 ///   has no density. The factors are chosen so that the weight is exact:
 ///   `f` is the whole weight (the tint, times any discrete-choice and
