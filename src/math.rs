@@ -42,6 +42,26 @@ pub trait Real:
     fn ne(self, rhs: Self) -> Self::Mask;
     /// `if mask { a } else { b }` lane-wise.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+
+    /// The same truth value in every lane.
+    #[inline(always)]
+    fn splat_mask(b: bool) -> Self::Mask {
+        let z = Self::splat(0.0);
+        if b { z.eq(z) } else { z.ne(z) }
+    }
+    /// The larger of the two, lane-wise: `if self < rhs { rhs } else { self }`
+    /// — one definition for every instantiation (so a NaN in `rhs`, and
+    /// the sign of a zero, resolve the same way in scalar and SIMD code).
+    #[inline(always)]
+    fn max(self, rhs: Self) -> Self {
+        Self::select(self.lt(rhs), rhs, self)
+    }
+    /// The smaller of the two, lane-wise: `if rhs < self { rhs } else { self }`
+    /// (see [`Real::max`]).
+    #[inline(always)]
+    fn min(self, rhs: Self) -> Self {
+        Self::select(rhs.lt(self), rhs, self)
+    }
 }
 
 impl Real for f32 {
@@ -197,6 +217,12 @@ impl<R: Real> V3<R> {
     pub fn scale(self, s: R) -> Self {
         Self::new(self.x * s, self.y * s, self.z * s)
     }
+    /// Each component times the matching component of `o` (an RGB tint,
+    /// say).
+    #[inline(always)]
+    pub fn mul_comp(self, o: Self) -> Self {
+        Self::new(self.x * o.x, self.y * o.y, self.z * o.z)
+    }
     /// Lane-wise `if mask { a } else { b }`.
     #[inline(always)]
     pub fn select(mask: R::Mask, a: Self, b: Self) -> Self {
@@ -223,6 +249,15 @@ impl<R: Real> Sub for V3<R> {
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+
+impl<R: Real> Neg for V3<R> {
+    type Output = Self;
+    /// The vector pointing the other way (exact).
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self::new(-self.x, -self.y, -self.z)
     }
 }
 
@@ -298,6 +333,35 @@ mod tests {
             worst = worst.max((c as f64 - a.cos()).abs());
         }
         assert!(worst < 4e-7, "worst error {worst}");
+    }
+
+    #[test]
+    fn max_min_and_masks_simd_equal_scalar_bitwise() {
+        let vals = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -2.5,
+            f32::NAN,
+            f32::INFINITY,
+            1e-40,
+            -1e30,
+        ];
+        for &a in &vals {
+            for &b in &vals {
+                let (a8, b8) = (f32x8::splat(a), f32x8::splat(b));
+                let max8 = Real::max(a8, b8).to_array()[3];
+                let min8 = Real::min(a8, b8).to_array()[5];
+                assert_eq!(Real::max(a, b).to_bits(), max8.to_bits(), "max({a}, {b})");
+                assert_eq!(Real::min(a, b).to_bits(), min8.to_bits(), "min({a}, {b})");
+                // The documented definition.
+                let want = if a < b { b } else { a };
+                assert_eq!(Real::max(a, b).to_bits(), want.to_bits());
+            }
+        }
+        assert!(<f32 as Real>::splat_mask(true) && !<f32 as Real>::splat_mask(false));
+        assert!(<f32x8 as Real>::splat_mask(true).all());
+        assert!(!<f32x8 as Real>::splat_mask(false).any());
     }
 
     #[test]

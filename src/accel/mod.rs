@@ -2,9 +2,12 @@
 //!
 //! - [`triangle`]: Möller–Trumbore, written once for scalar and 8-wide
 //!   code, and the 8-triangle packs;
-//! - [`bvh`]: the 8-wide bounding volume hierarchy over the packs.
+//! - [`bvh`]: the 8-wide bounding volume hierarchy over the packs;
+//! - [`sphere`]: robust ray/sphere intersection, scalar and 8 spheres at
+//!   once (not yet in the hierarchy).
 
 pub mod bvh;
+pub mod sphere;
 pub mod triangle;
 
 use crate::scene::Scene;

@@ -1,7 +1,11 @@
 //! The ideal diffuse (Lambertian) model: BRDF `ρ/π` on both sides of the
 //! surface.
+//!
+//! Every function takes the normal facing the incoming ray (the side of
+//! `wo`, as [`facing`](super::facing) returns it): reflection happens on
+//! that side, and there is none on the other.
 
-use super::BsdfSample;
+use super::{BsdfSample, local_to_world, tangents};
 use crate::math::{Real, V3, sin_cos_2pi};
 
 /// The report's sampling routine: a direction uniform on the hemisphere of
@@ -17,6 +21,7 @@ pub fn sample_uniform<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
         // make it -1e-7 and a sample negative.
         cos: u[0],
         pdf: R::splat(1.0 / (2.0 * std::f32::consts::PI)),
+        delta: R::splat_mask(false),
     }
 }
 
@@ -48,6 +53,7 @@ pub fn sample_cosine<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
         f,
         cos,
         pdf: cos * R::splat(std::f32::consts::FRAC_1_PI),
+        delta: R::splat_mask(false),
     }
 }
 
@@ -71,6 +77,16 @@ pub fn pdf_cosine<R: Real>(n: V3<R>, wi: V3<R>) -> R {
     R::select(cos.lt(zero), zero, cos) * R::splat(std::f32::consts::FRAC_1_PI)
 }
 
+/// The density of [`sample_uniform`] for the direction `wi` (`n` the
+/// normal facing the incoming ray): `1/2π` where `cos θ > 0`, zero
+/// elsewhere.
+#[inline(always)]
+pub fn pdf_uniform<R: Real>(n: V3<R>, wi: V3<R>) -> R {
+    let zero = R::splat(0.0);
+    let above = zero.lt(n.dot(wi));
+    R::select(above, R::splat(1.0 / (2.0 * std::f32::consts::PI)), zero)
+}
+
 /// A direction on the hemisphere around unit normal `n`, uniform in solid
 /// angle (pdf `1/2π`), from two uniform numbers — the report's method.
 ///
@@ -87,23 +103,12 @@ pub fn uniform_hemisphere<R: Real>(n: V3<R>, x1: R, x2: R) -> V3<R> {
 }
 
 /// The direction with coordinates `(lx, ly, lz)` in the frame of unit
-/// normal `n` (its y axis). The frame is Scratchapixel's (the report's
-/// reference \[3\]): a tangent `nt` orthogonal to `n` built from its two
-/// largest components, and `nb = n × nt`; the direction is
+/// normal `n` (its y axis): [`local_to_world`] in the frame of
+/// [`tangents`] (Scratchapixel's, the report's reference \[3\]), i.e.
 /// `nb·lx + n·ly + nt·lz`.
 #[inline(always)]
 pub fn to_world<R: Real>(n: V3<R>, lx: R, ly: R, lz: R) -> V3<R> {
-    let zero = R::splat(0.0);
-    let use_x = n.y.abs().lt(n.x.abs());
-    let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
-    let inv_yz = R::splat(1.0) / (n.y * n.y + n.z * n.z).sqrt();
-    let nt = V3::select(
-        use_x,
-        V3::new(n.z * inv_xz, zero, -n.x * inv_xz),
-        V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
-    );
-    let nb = n.cross(nt);
-    nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
+    local_to_world(n, tangents(n), lx, ly, lz)
 }
 
 #[cfg(test)]

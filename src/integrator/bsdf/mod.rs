@@ -4,24 +4,68 @@
 //!
 //! A sampling routine returns its direction together with its own weight
 //! ([`BsdfSample`]): callers never rely on how a direction was drawn.
+//!
+//! The models: [`diffuse`] (Lambertian, two-sided), [`mirror`] (perfect
+//! specular reflection), [`glass`] (smooth dielectric: Fresnel, Snell, total
+//! internal reflection) and [`metal`] (rough conductor: GGX with
+//! visible-normal sampling).
+//!
+//! Conventions shared by every model:
+//!
+//! - `wo` points away from the surface towards where the light goes (the
+//!   negated ray direction); `wi`, the sampled or evaluated direction, also
+//!   points away from the surface. Both are unit vectors, and so are normals.
+//! - Each function says which normal it takes: the *facing* normal (turned
+//!   towards `wo`, as [`facing`] returns it) or the geometric one.
+//! - Directions for which a model has no value give `f = 0` from `eval` and
+//!   `0` from `pdf`, never NaN.
+//! - A [`BsdfSample`] with `delta` set comes from a specular (Dirac) lobe;
+//!   see its documentation for how its factors are chosen.
 
 pub mod diffuse;
+pub mod glass;
+pub mod metal;
+pub mod mirror;
 
 use crate::math::{Real, V3};
 
 /// A scattered direction and its weight `f · |cos θ| / pdf`, kept as its
 /// three factors so that the throughput update is `β · f · cos / pdf`,
 /// evaluated left to right the same way by every engine.
+///
+/// The contract, lane by lane:
+///
+/// - **Non-delta lobes** (`delta` false: [`diffuse`], [`metal`]): `f` is
+///   the BSDF value for `(wo, wi)` (up to rounding, what
+///   [`metal::eval`] returns, and what [`diffuse::eval`] returns before its
+///   factor `cos θ`), `cos` is `|cos θ|` of `wi` with the normal, and `pdf`
+///   is the solid-angle density `wi` was drawn with — the density to use
+///   for multiple importance sampling (what [`metal::pdf`],
+///   [`diffuse::pdf_cosine`] or [`diffuse::pdf_uniform`] returns).
+/// - **Delta lobes** (`delta` true: [`mirror`], [`glass`]): the direction
+///   has no density. The factors are chosen so that the weight is exact:
+///   `f` is the whole weight (the tint, times any discrete-choice and
+///   radiance-scaling factor that does not cancel), `cos = 1` and
+///   `pdf = 1`, so `β · f · 1 / 1 = β · f` bit for bit. Next-event
+///   estimation takes no shadow ray at such a surface, and a BSDF-sampled
+///   hit on an emitter counts in full (MIS weight 1).
+/// - **Absorbed samples** (a direction a lobe cannot produce, e.g. a GGX
+///   reflection below the horizon): `f = 0`, `cos = 0`, `pdf = 1`, so the
+///   weight is exactly zero and never NaN; the path may stop there.
 #[derive(Clone, Copy, Debug)]
-pub struct BsdfSample<R> {
+pub struct BsdfSample<R: Real> {
     /// The new direction, a unit vector away from the surface.
     pub wi: V3<R>,
-    /// The BSDF's value for the pair of directions, per RGB channel.
+    /// The BSDF's value for the pair of directions, per RGB channel (for a
+    /// delta lobe: the sample's whole weight).
     pub f: V3<R>,
-    /// `|cos θ|` of `wi` with the (facing) normal.
+    /// `|cos θ|` of `wi` with the (facing) normal (for a delta lobe: 1).
     pub cos: R,
-    /// The density `wi` was drawn with, per unit solid angle.
+    /// The density `wi` was drawn with, per unit solid angle (for a delta
+    /// lobe: 1).
     pub pdf: R,
+    /// Whether the direction comes from a delta (specular) lobe.
+    pub delta: R::Mask,
 }
 
 impl<R: Real> BsdfSample<R> {
@@ -44,4 +88,40 @@ pub fn facing<R: Real>(normal: V3<R>, d: V3<R>) -> (R::Mask, V3<R>) {
     let front = d.dot(normal).lt(R::splat(0.0));
     let n = V3::select(front, normal, V3::new(-normal.x, -normal.y, -normal.z));
     (front, n)
+}
+
+/// The mirror image of `w` about the normal `n`: `2 (w · n) n - w`, each
+/// component one fused multiply-add. Either orientation of `n` gives the
+/// same bits.
+#[inline(always)]
+pub fn reflect<R: Real>(w: V3<R>, n: V3<R>) -> V3<R> {
+    let c2 = w.dot(n) * R::splat(2.0);
+    n.mul_add(c2, -w)
+}
+
+/// Two unit tangents `(nt, nb)` that make an orthonormal frame with the unit
+/// normal `n`: Scratchapixel's (the report's reference \[3\]), a tangent
+/// `nt` orthogonal to `n` built from its two largest components, and
+/// `nb = n × nt`.
+#[inline(always)]
+pub fn tangents<R: Real>(n: V3<R>) -> (V3<R>, V3<R>) {
+    let zero = R::splat(0.0);
+    let use_x = n.y.abs().lt(n.x.abs());
+    let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
+    let inv_yz = R::splat(1.0) / (n.y * n.y + n.z * n.z).sqrt();
+    let nt = V3::select(
+        use_x,
+        V3::new(n.z * inv_xz, zero, -n.x * inv_xz),
+        V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
+    );
+    let nb = n.cross(nt);
+    (nt, nb)
+}
+
+/// The world direction with local coordinates `(lx, ly, lz)` in the frame
+/// of [`tangents`]: `nb · lx + n · ly + nt · lz` (the normal is the local
+/// y axis, as in the report's hemisphere sampling).
+#[inline(always)]
+pub fn local_to_world<R: Real>(n: V3<R>, (nt, nb): (V3<R>, V3<R>), lx: R, ly: R, lz: R) -> V3<R> {
+    nb.mul_add(lx, n.mul_add(ly, nt.scale(lz)))
 }
