@@ -495,8 +495,8 @@ mod tests {
     #[test]
     fn generators_are_joe_kuo_dimensions_1_and_2() {
         // Dimension 1: van der Corput, the identity in reversed order.
-        for k in 0..32 {
-            assert_eq!(GENERATORS[0][k], 1 << (31 - k));
+        for (k, &c) in GENERATORS[0].iter().enumerate() {
+            assert_eq!(c, 1 << (31 - k));
         }
         // Dimension 2 (x + 1, m_1 = 1): m_k = 1, 3, 5, 15, 17, 51, 85, 255, ...
         let m = [1u32, 3, 5, 15, 17, 51, 85, 255, 257];
