@@ -88,14 +88,11 @@ fn summary() {
     // Short runs (one batch, under a millisecond) are seldom preempted on a
     // busy machine, so their median is the sampler's own speed.
     const RUNS: u32 = 301;
-    const REPS: u32 = 1;
     for run in 0..RUNS {
         let mut time = |k: usize, f: &mut dyn FnMut(u32) -> f32| {
             let start = Instant::now();
-            for r in 0..REPS {
-                black_box(f(run * REPS + r));
-            }
-            t[k].push(start.elapsed().as_secs_f64() * 1e9 / (REPS as u64 * NUMBERS) as f64);
+            black_box(f(run));
+            t[k].push(start.elapsed().as_secs_f64() * 1e9 / NUMBERS as f64);
         };
         time(0, &mut |p| batch_1d(&ind, &mut pi, p));
         time(1, &mut |p| batch_1d(&sob, &mut ps, p));
