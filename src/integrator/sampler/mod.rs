@@ -9,6 +9,14 @@
 //! takes dimensions 0 and 1 (where in the pixel), and each surface the path
 //! bounces from takes the next ones, as many as its integrator uses at a
 //! vertex.
+//!
+//! Two samplers: [`Independent`] (keyed PCG streams) and [`Sobol`]
+//! (Owen-scrambled Sobol points by global sample index, Burley 2020; see
+//! [`sobol`]).
+
+pub mod sobol;
+
+pub use sobol::{Sobol, SobolPath};
 
 use rand_core::Rng;
 use rand_pcg::Pcg32;
