@@ -5,7 +5,7 @@ use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum};
 use crate::integrator::nee::Estimator;
 use crate::integrator::reference::ReferenceTracer;
-use crate::integrator::sampler::{Independent, Sampler};
+use crate::integrator::sampler::{Independent, Sampler, Sobol};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
 use crate::integrator::{Counters, Frame, TileJob, estimator_fingerprint};
 use crate::scene::{Integrator, SamplerKind, Scene};
@@ -331,9 +331,29 @@ impl Renderer {
             }
             !stopping
         };
-        let sampler = Independent::new(self.settings.seed);
+        let seed = self.settings.seed;
+        let counters = match self.settings.sampler {
+            SamplerKind::Independent => {
+                self.render_tiles(&Independent::new(seed), range, sums, &go)
+            }
+            SamplerKind::Sobol => self.render_tiles(&Sobol::new(seed), range, sums, &go),
+        };
+        (counters, !skipped.load(Ordering::Relaxed))
+    }
+
+    /// Every tile of `sums` not skipped by `go`, numbers from `sampler`.
+    fn render_tiles<S: Sampler>(
+        &self,
+        sampler: &S,
+        range: Range<u32>,
+        sums: &mut [PixelSum],
+        go: &(dyn Fn() -> bool + Sync),
+    ) -> Counters
+    where
+        S::Path: 'static,
+    {
         let tile = tile_pixels(&self.settings, range.len());
-        let counters = self.pool.install(|| {
+        self.pool.install(|| {
             sums.par_chunks_mut(tile)
                 .enumerate()
                 .filter(|_| go())
@@ -345,11 +365,10 @@ impl Renderer {
                         samples: range.clone(),
                         sums,
                     };
-                    self.render_tile(&sampler, &mut job)
+                    self.render_tile(sampler, &mut job)
                 })
                 .reduce(Counters::default, |a, b| a + b)
-        });
-        (counters, !skipped.load(Ordering::Relaxed))
+        })
     }
 
     /// One tile, by whichever engine this renderer runs.

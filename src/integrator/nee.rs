@@ -6,6 +6,7 @@
 
 use super::bsdf::diffuse;
 use super::lights::{Lights, power_heuristic};
+use super::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::Integrator;
 use glam::Vec3;
@@ -44,6 +45,62 @@ impl Estimator {
     #[inline]
     pub fn samples_lights(&self) -> bool {
         self.integrator == Integrator::Nee
+    }
+
+    // The numbers of a vertex. Every vertex a path scatters from draws the
+    // same dimensions for the same purposes, and every 2D draw starts at an
+    // even dimension (the camera took dimensions 0 and 1), so that a
+    // sampler that stratifies pairs of dimensions (Sobol) stratifies them:
+    //
+    //   report: [direction 2]                                    2 dims
+    //   bsdf:   [roulette, lobe, direction 2]                    4 dims
+    //   nee:    [roulette, emitter, point 2, lobe, -, direction 2] 8 dims
+    //
+    // A slot whose number is not needed (no roulette at this depth, the
+    // unused one) is skipped, not drawn elsewhere.
+
+    /// The vertex's Russian roulette number, when roulette applies at
+    /// depth `depth` (the first number of the vertex).
+    #[inline]
+    pub fn roulette_number<S: Sampler>(
+        &self,
+        sampler: &S,
+        path: &mut S::Path,
+        depth: u32,
+    ) -> Option<f32> {
+        if self.integrator == Integrator::Report {
+            return None;
+        }
+        if self.roulette_at(depth) {
+            Some(sampler.next(path))
+        } else {
+            sampler.skip(path, 1);
+            None
+        }
+    }
+
+    /// The vertex's light-sampling numbers: an emitter, a point on it.
+    #[inline]
+    pub fn light_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) -> (f32, [f32; 2]) {
+        let pick = sampler.next(path);
+        (pick, sampler.next_2d(path))
+    }
+
+    /// The vertex's scattering numbers: a lobe choice and a direction.
+    #[inline]
+    pub fn bsdf_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) -> (f32, [f32; 2]) {
+        match self.integrator {
+            Integrator::Report => (0.0, sampler.next_2d(path)),
+            Integrator::Bsdf => {
+                let lobe = sampler.next(path);
+                (lobe, sampler.next_2d(path))
+            }
+            Integrator::Nee => {
+                let lobe = sampler.next(path);
+                sampler.skip(path, 1);
+                (lobe, sampler.next_2d(path))
+            }
+        }
     }
 }
 

@@ -175,16 +175,15 @@ impl ReferenceTracer {
         let brdf = material.reflectance / PI;
         let mut beta = beta;
         let mut survival = 1.0;
-        if est.roulette_at(depth) {
+        if let Some(u) = est.roulette_number(sampler, path, depth) {
             survival = survival_of(beta);
-            if sampler.next(path) >= survival {
+            if u >= survival {
                 return radiance;
             }
             beta /= survival;
         }
         if est.samples_lights() {
-            let pick = sampler.next(path);
-            let u = sampler.next_2d(path);
+            let (pick, u) = est.light_numbers(sampler, path);
             if let Some(shadow) = connect(
                 &self.lights,
                 self.epsilon,

@@ -33,6 +33,15 @@ pub trait Sampler: Send + Sync {
     /// The path's number at its next dimension, in `[0, 1)`.
     fn next(&self, path: &mut Self::Path) -> f32;
 
+    /// Skip the path's next `n` dimensions (numbers it does not use, so
+    /// that every dimension keeps one meaning across paths).
+    #[inline]
+    fn skip(&self, path: &mut Self::Path, n: u32) {
+        for _ in 0..n {
+            self.next(path);
+        }
+    }
+
     /// The path's numbers at its next two dimensions.
     #[inline]
     fn next_2d(&self, path: &mut Self::Path) -> [f32; 2] {

@@ -412,6 +412,11 @@ impl Sampler for Sobol {
         reversed_to_f32(z)
     }
 
+    #[inline]
+    fn skip(&self, path: &mut SobolPath, n: u32) {
+        path.dim = path.dim.wrapping_add(n);
+    }
+
     /// Both coordinates of one point when the path is at an even
     /// dimension (one index shuffle for the two); else two [`next`]s.
     ///

@@ -6,6 +6,7 @@ use super::queue::{PathQueue, load8, store8};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{diffuse, facing};
+use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
 use crate::scene::{Integrator, Model};
@@ -18,11 +19,11 @@ pub fn bounce<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     sampler: &S,
     tables: &Tables,
-    integrator: Integrator,
+    estimator: &Estimator,
 ) {
     for (model, rows) in bins(queue, tables) {
         match model {
-            Model::Diffuse => diffuse(queue, rows, sampler, tables, integrator),
+            Model::Diffuse => diffuse(queue, rows, sampler, tables, estimator),
         }
     }
 }
@@ -41,18 +42,17 @@ fn bins<P>(queue: &PathQueue<P>, tables: &Tables) -> Vec<(Model, Range<usize>)> 
 /// Bounce the paths in rows `rows` off ideal diffuse surfaces, eight at a
 /// time: the new origin is the hit point; the new direction and the
 /// throughput's factor come from [`diffuse::sample_uniform`] for the
-/// report's estimator (two numbers of the path), else from
-/// [`diffuse::sample_cosine`] (three numbers: a lobe choice, unused by the
-/// one lobe, and two for the direction), on the side of the surface the
-/// ray came from.
+/// report's estimator, else from [`diffuse::sample_cosine`] (with the
+/// vertex's scattering numbers, [`Estimator::bsdf_numbers`]), on the side
+/// of the surface the ray came from.
 pub fn diffuse<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     rows: Range<usize>,
     sampler: &S,
     tables: &Tables,
-    integrator: Integrator,
+    estimator: &Estimator,
 ) {
-    let report = integrator == Integrator::Report;
+    let report = estimator.integrator == Integrator::Report;
     for i in rows.clone().step_by(8) {
         let lanes = (rows.end - i).min(8);
         // Lanes past the last path compute garbage that is stored past the
@@ -72,10 +72,8 @@ pub fn diffuse<S: Sampler>(
         );
         let (mut x1, mut x2) = ([0.0f32; 8], [0.0f32; 8]);
         for (l, path) in queue.sampler[i..i + lanes].iter_mut().enumerate() {
-            if !report {
-                let _lobe = sampler.next(path);
-            }
-            [x1[l], x2[l]] = sampler.next_2d(path);
+            let (_lobe, u) = estimator.bsdf_numbers(sampler, path);
+            [x1[l], x2[l]] = u;
         }
         let load3 = |cols: &[Vec<f32>; 3]| {
             V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
@@ -152,7 +150,7 @@ mod tests {
         for n in 0..=17 {
             let before = queue(n, &sampler);
             let mut after = before.clone();
-            diffuse(&mut after, 0..n, &sampler, &tables, Integrator::Report);
+            diffuse(&mut after, 0..n, &sampler, &tables, &Estimator::report(3));
             for i in 0..n {
                 // The same row, bounced by the scalar (f32) routine.
                 let tri = before.hit[i] as usize;

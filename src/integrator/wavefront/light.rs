@@ -8,7 +8,7 @@ use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::facing;
 use crate::integrator::lights::Lights;
-use crate::integrator::nee::connect;
+use crate::integrator::nee::{Estimator, connect};
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use glam::Vec3;
@@ -17,15 +17,13 @@ use glam::Vec3;
 /// and queue the shadow rays that may carry light.
 pub fn sample_lights<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
-    sampler: &S,
+    (sampler, estimator): (&S, &Estimator),
     (tables, lights): (&Tables, &Lights),
     shadows: &mut ShadowQueue,
 ) {
     shadows.clear();
     for i in 0..queue.len() {
-        let path = &mut queue.sampler[i];
-        let pick = sampler.next(path);
-        let u = sampler.next_2d(path);
+        let (pick, u) = estimator.light_numbers(sampler, &mut queue.sampler[i]);
         let tri = queue.hit[i] as usize;
         let col = |c: &[Vec<f32>; 3], i: usize| V3::new(c[0][i], c[1][i], c[2][i]);
         let (o, d) = (col(&queue.o, i), col(&queue.d, i));

@@ -155,7 +155,7 @@ impl WavefrontEngine {
             }
             if est.samples_lights() {
                 time.time(Stage::Light, || {
-                    light::sample_lights(queue, sampler, (tables, lights), shadows)
+                    light::sample_lights(queue, (sampler, est), (tables, lights), shadows)
                 });
                 let shadow_rays = time.time(Stage::Shadow, || {
                     shadow::shadow(queue, shadows, &self.bvh, tables.epsilon)
@@ -164,7 +164,7 @@ impl WavefrontEngine {
                 counters.shadow_rays += shadow_rays;
             }
             time.time(Stage::Bounce, || {
-                bounce::bounce(queue, sampler, tables, est.integrator)
+                bounce::bounce(queue, sampler, tables, est)
             });
         }
     }

@@ -20,15 +20,14 @@ pub fn retire<S: Sampler>(
     last: bool,
     job: &mut TileJob,
 ) -> u64 {
-    let roulette = !last && estimator.roulette_at(depth);
     let mut invalid = 0;
     let n = queue.len();
     for i in 0..n {
         let mut done = last || queue.hit[i] == NO_HIT;
-        if roulette && !done {
+        if !done && let Some(u) = estimator.roulette_number(sampler, &mut queue.sampler[i], depth) {
             let beta = glam::Vec3::new(queue.beta[0][i], queue.beta[1][i], queue.beta[2][i]);
             let q = survival(beta);
-            if sampler.next(&mut queue.sampler[i]) >= q {
+            if u >= q {
                 done = true;
             } else {
                 for c in &mut queue.beta {
