@@ -203,14 +203,10 @@ impl ReferenceTracer {
                 }
             }
         }
+        let (_lobe, u) = est.bsdf_numbers(sampler, path);
         let s = match est.integrator {
-            Integrator::Report => {
-                diffuse::sample_uniform(normal, V3::from(brdf), sampler.next_2d(path))
-            }
-            Integrator::Bsdf | Integrator::Nee => {
-                let _lobe = sampler.next(path);
-                diffuse::sample_cosine(normal, V3::from(brdf), sampler.next_2d(path))
-            }
+            Integrator::Report => diffuse::sample_uniform(normal, V3::from(brdf), u),
+            Integrator::Bsdf | Integrator::Nee => diffuse::sample_cosine(normal, V3::from(brdf), u),
         };
         let next_beta = Vec3::from(s.weigh(V3::from(beta)));
         let incoming = self.trace(
