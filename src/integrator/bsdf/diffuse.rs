@@ -48,11 +48,14 @@ pub fn sample_cosine<R: Real>(n: V3<R>, f: V3<R>, u: [R; 2]) -> BsdfSample<R> {
     let (dx, dz) = (r * cos_phi, r * sin_phi);
     let cos = (-dx).mul_add(dx, (-dz).mul_add(dz, one));
     let cos = R::select(cos.lt(zero), zero, cos).sqrt();
+    // On the rim of the disk the direction grazes the surface (cos θ = 0,
+    // density 0): an absorbed sample, weight exactly 0 rather than 0/0.
+    let grazing = cos.le(zero);
     BsdfSample {
         wi: to_world(n, dx, cos, dz),
-        f,
+        f: V3::select(grazing, V3::new(zero, zero, zero), f),
         cos,
-        pdf: cos * R::splat(std::f32::consts::FRAC_1_PI),
+        pdf: R::select(grazing, one, cos * R::splat(std::f32::consts::FRAC_1_PI)),
         delta: R::splat_mask(false),
     }
 }
@@ -116,6 +119,16 @@ mod tests {
     use super::*;
     use crate::integrator::sampler::PathRng;
     use wide::f32x8;
+
+    #[test]
+    fn a_grazing_cosine_sample_weighs_exactly_nothing() {
+        // u = (0, 1/2) is the rim of the disk: cos θ = 0 and density 0.
+        let n = V3::new(0.0f32, 1.0, 0.0);
+        let s = sample_cosine(n, V3::new(0.5, 0.5, 0.5), [0.0, 0.5]);
+        assert_eq!(s.cos, 0.0);
+        let w = s.weigh(V3::new(1.0, 1.0, 1.0));
+        assert_eq!([w.x, w.y, w.z], [0.0; 3]);
+    }
 
     #[test]
     fn simd_hemisphere_equals_scalar_bitwise() {
