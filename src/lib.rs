@@ -16,7 +16,8 @@
 //!    tracer](integrator::reference) (the oracle) and the SIMD
 //!    [wavefront engine](integrator::wavefront) (the default).
 //! 5. [`output`]: images (PNG, EXR, PFM) and accumulation files, written
-//!    whole or not at all.
+//!    whole or not at all (and read back); [`metrics`]: an image's errors
+//!    against a reference.
 //! 6. [`render`]: the settings of a render and the [`Renderer`](render::Renderer):
 //!    one tile loop, on its own thread pool, for both engines.
 //! 7. [`run`]: long renders in sample passes (time limits, checkpoints,
@@ -62,6 +63,7 @@ pub mod film;
 pub mod fs;
 pub mod integrator;
 pub mod math;
+pub mod metrics;
 pub mod output;
 pub mod render;
 pub mod run;

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
-use crate::fs::write_atomic;
+use crate::fs::{FileError, write_atomic};
 use std::io::Write;
 use std::path::Path;
 
@@ -181,4 +181,120 @@ mod tests {
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }
+}
+
+/// A linear RGB image read back from a file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major pixels, row 0 at the top.
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// Read a linear float image: a PFM (colour, either byte order) or an
+/// OpenEXR file with R, G and B channels (its first layer). The size is
+/// checked against the data before anything of that size is allocated.
+pub fn read_image(path: &Path) -> Result<Image> {
+    let bad = |m: String| Error::Settings(format!("{}: {m}", path.display()));
+    let format = ImageFormat::from_path(path)?;
+    match format {
+        ImageFormat::Pfm => {
+            let bytes = std::fs::read(path).map_err(|e| FileError::new(path, e))?;
+            read_pfm(&bytes).map_err(bad)
+        }
+        ImageFormat::Exr => read_exr(path).map_err(bad),
+        ImageFormat::Png => Err(bad(
+            "a PNG is 8-bit and clamped; give the reference as .exr or .pfm".into(),
+        )),
+    }
+}
+
+fn read_pfm(bytes: &[u8]) -> std::result::Result<Image, String> {
+    // Three whitespace-separated header tokens after "PF": width, height,
+    // scale (negative: little-endian), then one whitespace byte.
+    let mut at = 0;
+    let mut token = || -> std::result::Result<&[u8], String> {
+        while bytes.get(at).is_some_and(u8::is_ascii_whitespace) {
+            at += 1;
+        }
+        let start = at;
+        while bytes.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
+            at += 1;
+        }
+        if start == at || at - start > 32 {
+            return Err("not a PFM image (bad header)".into());
+        }
+        Ok(&bytes[start..at])
+    };
+    if token()? != b"PF" {
+        return Err("not a colour PFM image (expected \"PF\")".into());
+    }
+    let mut number = |what: &str| -> std::result::Result<f64, String> {
+        std::str::from_utf8(token()?)
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .ok_or_else(|| format!("not a PFM image (bad {what})"))
+    };
+    let (w, h, scale) = (number("width")?, number("height")?, number("scale")?);
+    let data = bytes.get(at + 1..).unwrap_or(&[]);
+    let valid = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
+    if !(valid(w) && valid(h)) || scale == 0.0 || !scale.is_finite() {
+        return Err(format!("not a PFM image (size {w}x{h}, scale {scale})"));
+    }
+    let (w, h) = (w as usize, h as usize);
+    if w.checked_mul(h).and_then(|n| n.checked_mul(12)) != Some(data.len()) {
+        return Err(format!(
+            "a {w}x{h} PFM holds {} bytes of pixels, not {}",
+            w * h * 12,
+            data.len()
+        ));
+    }
+    let little = scale < 0.0;
+    let float = |b: &[u8]| {
+        let b: [u8; 4] = b.try_into().expect("4 bytes");
+        if little {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    };
+    let mut rgb = Vec::with_capacity(w * h);
+    // PFM rows run bottom to top.
+    for row in data.chunks_exact(w * 12).rev() {
+        rgb.extend(
+            row.chunks_exact(12)
+                .map(|p| [float(&p[0..4]), float(&p[4..8]), float(&p[8..12])]),
+        );
+    }
+    Ok(Image {
+        width: w as u32,
+        height: h as u32,
+        rgb,
+    })
+}
+
+fn read_exr(path: &Path) -> std::result::Result<Image, String> {
+    use exr::prelude::{ReadChannels, ReadLayers, RgbChannels, Vec2, read};
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgb_channels(
+            |size: Vec2<usize>, _: &RgbChannels| (size.0, vec![[0.0f32; 3]; size.0 * size.1]),
+            |(w, px): &mut (usize, Vec<[f32; 3]>), p: Vec2<usize>, (r, g, b): (f32, f32, f32)| {
+                px[p.1 * *w + p.0] = [r, g, b];
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| format!("cannot read the EXR image: {e}"))?;
+    let layer = image.layer_data;
+    Ok(self::Image {
+        width: layer.size.0 as u32,
+        height: layer.size.1 as u32,
+        rgb: layer.channel_data.pixels.1,
+    })
 }

@@ -4,7 +4,7 @@
 //! others.
 //!
 //! The layers, in order: `math`, `fs` → `scene` → `accel` → `film` →
-//! `integrator` → `output` → `render` → `run` → `cli`. `error` (the
+//! `integrator` → `output`, `metrics` → `render` → `run` → `cli`. `error` (the
 //! library's `Error`) wraps the typed errors of several layers, so it may
 //! name the modules that define them — and those modules never return
 //! `crate::Error` themselves (the cycle check below holds them to it).
@@ -25,7 +25,7 @@ const LAYERS: &[&[&str]] = &[
     &["accel"],
     &["film"],
     &["integrator"],
-    &["output"],
+    &["output", "metrics"],
     &["render"],
     &["run"],
     &["cli"],

@@ -6,7 +6,8 @@ use crate::cli::stats::{RenderStats, Stages};
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
 use crate::fs::{check_writable, same_file, write_atomic};
-use crate::output::{check_output_format, check_partial_path, write_output};
+use crate::metrics::ImageErrors;
+use crate::output::{check_output_format, check_partial_path, read_image, write_output};
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::run::session::{Interrupt, Session, SessionOptions, Stop};
 use crate::run::shard::{SampleRequest, SampleWork, ShardSpec, parse_samples};
@@ -75,6 +76,10 @@ pub struct RenderArgs {
     /// Write the render's figures as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// A converged image of the same render (.exr or .pfm): the summary
+    /// and --stats then give the result's MSE and relMSE against it.
+    #[arg(long, value_name = "IMAGE")]
+    pub reference: Option<PathBuf>,
     /// Print nothing but the final summary (no banner, no progress bar).
     /// Without a terminal on stderr that is the default.
     #[arg(long, short)]
@@ -195,6 +200,8 @@ struct Job {
     resumed: Option<Film>,
     resume: Option<PathBuf>,
     session: SessionOptions,
+    /// `--reference`: its path and pixels, checked to be of the render's size.
+    reference: Option<(PathBuf, Vec<[f32; 3]>)>,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -339,6 +346,23 @@ fn plan(args: RenderArgs) -> Result<Job> {
         None => None,
     };
 
+    let reference = match &args.reference {
+        Some(path) => {
+            let image = read_image(path)?;
+            if (image.width, image.height) != (settings.width, settings.height) {
+                return Err(Error::Settings(format!(
+                    "{}: the reference is {}x{}, the render {}x{}",
+                    path.display(),
+                    image.width,
+                    image.height,
+                    settings.width,
+                    settings.height
+                )));
+            }
+            Some((path.clone(), image.rgb))
+        }
+        None => None,
+    };
     let partial_image = match (args.write_partial, &out) {
         (None, _) => None,
         (Some(every), Some(out)) => Some((out.clone(), every)),
@@ -374,6 +398,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         resumed,
         resume: args.resume,
         session,
+        reference,
     })
 }
 
@@ -515,6 +540,10 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
             0.0
         }
     };
+    let errors = job
+        .reference
+        .as_ref()
+        .map(|(_, rgb)| ImageErrors::of(&film.to_rgb(), rgb));
     let stats = RenderStats {
         version: env!("CARGO_PKG_VERSION"),
         git_commit: crate::cli::stats::GIT_COMMIT,
@@ -561,6 +590,12 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         build_seconds: renderer.bvh().build_seconds(),
         bvh_bytes: renderer.bvh().bytes(),
         partial: partial_written,
+        reference: job
+            .reference
+            .as_ref()
+            .map(|(path, _)| path.display().to_string()),
+        mse: errors.map(|e| e.mse),
+        relmse: errors.map(|e| e.relmse),
     };
     if film.invalid_samples > 0 {
         eprintln!(
@@ -651,8 +686,12 @@ fn summary(job: &Job, report: &crate::run::session::SessionReport, stats: &Rende
             } else {
                 String::new()
             };
+            let errors = match (stats.relmse, stats.mse) {
+                (Some(relmse), Some(mse)) => format!(", relMSE {relmse:.4e} (MSE {mse:.4e})"),
+                _ => String::new(),
+            };
             format!(
-                "rendered {done} spp{limit}{range}{resumed} in {:.3} s: {speed} -> {}",
+                "rendered {done} spp{limit}{range}{resumed} in {:.3} s: {speed}{errors} -> {}",
                 stats.seconds,
                 outputs(job)
             )

@@ -104,6 +104,13 @@ pub struct RenderStats {
     pub output: Option<String>,
     /// The `--partial` file (`.wtacc`) written, if any.
     pub partial: Option<String>,
+    /// The `--reference` image, if any.
+    pub reference: Option<String>,
+    /// The result's mean squared error against `reference`.
+    pub mse: Option<f64>,
+    /// The result's relative mean squared error against `reference`:
+    /// mean of `(a - r)² / (r² + 0.01)` over pixels and channels.
+    pub relmse: Option<f64>,
 }
 
 /// Wall-clock seconds of the stages of a run.
