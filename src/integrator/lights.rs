@@ -8,9 +8,9 @@
 //! with the emitter's normal at angle `θ_l` to the direction back to `x`,
 //! it is `P(emitter) / area · r² / cos θ_l` per unit solid angle.
 
-use crate::math::V3;
+use crate::math::{Real, V3};
 use crate::scene::Scene;
-use glam::Vec3;
+use wide::f32x8;
 
 /// The scene's emitters, with what sampling them needs.
 #[derive(Clone, Debug, Default)]
@@ -19,30 +19,100 @@ pub struct Lights {
     triangle: Vec<u32>,
     /// Running sums of the emitters' powers, normalised to end at 1.
     cdf: Vec<f32>,
-    /// Vertex 0 and two edges of each emitter.
-    v0: Vec<Vec3>,
-    e1: Vec<Vec3>,
-    e2: Vec<Vec3>,
-    /// Front-side unit normal of each emitter.
-    normal: Vec<Vec3>,
-    /// Emitted radiance of each emitter (towards its front).
-    emission: Vec<Vec3>,
+    /// Each emitter's geometry and radiance.
+    emitters: Vec<Emitter>,
     /// `P(emitter) / area` of each emitter, by *triangle* index (0 for
     /// triangles that do not emit), so a hit can look it up.
     pdf_area_of_triangle: Vec<f32>,
 }
 
-/// A point sampled on an emitter.
+/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, its
+/// radiance and its sampling density.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LightSample {
-    /// The point.
-    pub point: Vec3,
-    /// The emitter's front-side unit normal.
-    pub normal: Vec3,
+pub struct Emitter<R = f32> {
+    /// Vertex 0.
+    pub v0: V3<R>,
+    /// `v1 - v0`.
+    pub e1: V3<R>,
+    /// `v2 - v0`.
+    pub e2: V3<R>,
+    /// Front-side unit normal.
+    pub normal: V3<R>,
     /// The radiance it emits towards its front.
-    pub emission: Vec3,
-    /// The density of the point per unit area: `P(emitter) / area`.
-    pub pdf_area: f32,
+    pub emission: V3<R>,
+    /// The density of its points per unit area: `P(emitter) / area`.
+    pub pdf_area: R,
+}
+
+const ZERO: V3<f32> = V3 {
+    x: 0.0,
+    y: 0.0,
+    z: 0.0,
+};
+
+impl Emitter {
+    /// No emitter: a point sampled on it never carries light (its normal
+    /// is zero, so it faces nothing).
+    pub const NONE: Emitter = Emitter {
+        v0: ZERO,
+        e1: ZERO,
+        e2: ZERO,
+        normal: ZERO,
+        emission: ZERO,
+        pdf_area: 0.0,
+    };
+}
+
+impl Emitter<f32x8> {
+    /// Eight emitters, one per lane.
+    #[inline(always)]
+    pub fn lanes(e: [&Emitter; 8]) -> Self {
+        let v3 = |f: fn(&Emitter) -> V3<f32>| {
+            let v = e.map(f);
+            V3::new(
+                f32x8::from(v.map(|v| v.x)),
+                f32x8::from(v.map(|v| v.y)),
+                f32x8::from(v.map(|v| v.z)),
+            )
+        };
+        Self {
+            v0: v3(|e| e.v0),
+            e1: v3(|e| e.e1),
+            e2: v3(|e| e.e2),
+            normal: v3(|e| e.normal),
+            emission: v3(|e| e.emission),
+            pdf_area: f32x8::from(e.map(|e| e.pdf_area)),
+        }
+    }
+}
+
+/// A point on an emitter, as next-event estimation uses it: one
+/// (`R = f32`) or eight (`R = f32x8`).
+#[derive(Clone, Copy, Debug)]
+pub struct LightPoint<R> {
+    /// The point.
+    pub point: V3<R>,
+    /// The emitter's front-side unit normal.
+    pub normal: V3<R>,
+    /// The radiance it emits towards its front.
+    pub emission: V3<R>,
+    /// The point's density per unit area.
+    pub pdf_area: R,
+}
+
+impl<R: Real> LightPoint<R> {
+    /// The point `u` (two numbers) of the emitter `e`, uniform by area
+    /// ([`square_to_triangle`]).
+    #[inline(always)]
+    pub fn on(e: &Emitter<R>, u: [R; 2]) -> Self {
+        let [b1, b2] = square_to_triangle(u);
+        Self {
+            point: e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)),
+            normal: e.normal,
+            emission: e.emission,
+            pdf_area: e.pdf_area,
+        }
+    }
 }
 
 impl Lights {
@@ -54,6 +124,7 @@ impl Lights {
             ..Lights::default()
         };
         let mut powers = Vec::new();
+        let mut areas = Vec::new();
         for (i, t) in scene.triangles.iter().enumerate() {
             let emission = scene.materials[t.material as usize].emission;
             let (e1, e2) = (t.v[1] - t.v[0], t.v[2] - t.v[0]);
@@ -63,21 +134,25 @@ impl Lights {
                 continue;
             }
             lights.triangle.push(i as u32);
-            lights.v0.push(t.v[0]);
-            lights.e1.push(e1);
-            lights.e2.push(e2);
-            lights.normal.push(t.normal);
-            lights.emission.push(emission);
+            lights.emitters.push(Emitter {
+                v0: t.v[0].into(),
+                e1: e1.into(),
+                e2: e2.into(),
+                normal: t.normal.into(),
+                emission: emission.into(),
+                pdf_area: 0.0,
+            });
             powers.push(power as f64);
+            areas.push(area as f64);
         }
         let total: f64 = powers.iter().sum();
         let mut sum = 0.0;
         for (k, p) in powers.iter().enumerate() {
             sum += p;
             lights.cdf.push((sum / total) as f32);
-            let tri = lights.triangle[k] as usize;
-            let area = 0.5 * lights.e1[k].cross(lights.e2[k]).length();
-            lights.pdf_area_of_triangle[tri] = ((p / total) / area as f64) as f32;
+            let pdf_area = ((p / total) / areas[k]) as f32;
+            lights.emitters[k].pdf_area = pdf_area;
+            lights.pdf_area_of_triangle[lights.triangle[k] as usize] = pdf_area;
         }
         if let Some(last) = lights.cdf.last_mut() {
             *last = 1.0;
@@ -95,30 +170,27 @@ impl Lights {
         self.triangle.len()
     }
 
-    /// A point on an emitter: `pick` in `[0, 1)` chooses the emitter by
-    /// power, `u` places the point on it, uniformly by area. `None` when
-    /// the scene has no emitter.
+    /// The emitter that `pick` in `[0, 1)` chooses, by power
+    /// ([`Emitter::NONE`] when the scene has none).
     #[inline]
-    pub fn sample(&self, pick: f32, u: [f32; 2]) -> Option<LightSample> {
-        if self.cdf.is_empty() {
+    pub fn pick(&self, pick: f32) -> &Emitter {
+        // The first emitter whose running sum exceeds `pick`.
+        match self.cdf.len() {
+            0 => &Emitter::NONE,
+            1 => &self.emitters[0],
+            n => &self.emitters[self.cdf.partition_point(|&c| c <= pick).min(n - 1)],
+        }
+    }
+
+    /// A point on an emitter: `pick` chooses the emitter by power, `u`
+    /// places the point on it, uniformly by area. `None` when the scene
+    /// has no emitter.
+    #[inline]
+    pub fn sample(&self, pick: f32, u: [f32; 2]) -> Option<LightPoint<f32>> {
+        if self.is_empty() {
             return None;
         }
-        // The first emitter whose running sum exceeds `pick`.
-        let k = self
-            .cdf
-            .partition_point(|&c| c <= pick)
-            .min(self.cdf.len() - 1);
-        let [b1, b2] = square_to_triangle(u);
-        let point = Vec3::from(
-            V3::from(self.e1[k])
-                .mul_add(b1, V3::from(self.e2[k]).mul_add(b2, V3::from(self.v0[k]))),
-        );
-        Some(LightSample {
-            point,
-            normal: self.normal[k],
-            emission: self.emission[k],
-            pdf_area: self.pdf_area_of_triangle[self.triangle[k] as usize],
-        })
+        Some(LightPoint::on(self.pick(pick), u))
     }
 
     /// The density per unit area with which [`Lights::sample`] picks a
@@ -133,25 +205,23 @@ impl Lights {
 /// point uniform on a triangle, from a point of the unit square: Heitz's
 /// low-distortion map ("A Low-Distortion Map Between Triangle and Square",
 /// 2019), which keeps stratified points stratified.
-#[inline]
-pub fn square_to_triangle([u0, u1]: [f32; 2]) -> [f32; 2] {
-    let (b0, b1) = if u0 < u1 {
-        let b0 = u0 / 2.0;
-        (b0, u1 - b0)
-    } else {
-        let b1 = u1 / 2.0;
-        (u0 - b1, b1)
-    };
+#[inline(always)]
+pub fn square_to_triangle<R: Real>([u0, u1]: [R; 2]) -> [R; 2] {
+    let half = R::splat(0.5);
+    let below = u0.lt(u1);
+    let (h0, h1) = (u0 * half, u1 * half);
+    let b0 = R::select(below, h0, u0 - h1);
+    let b1 = R::select(below, u1 - h0, h1);
     // Weights of vertices 0, 1, 2 are (b0, b1, 1 - b0 - b1).
-    [b1, 1.0 - b0 - b1]
+    [b1, R::splat(1.0) - b0 - b1]
 }
 
 /// The power heuristic (β = 2) weight of a strategy of density `a` against
 /// one of density `b`: `a² / (a² + b²)`, 1 when `b` is 0.
-#[inline]
-pub fn power_heuristic(a: f32, b: f32) -> f32 {
+#[inline(always)]
+pub fn power_heuristic<R: Real>(a: R, b: R) -> R {
     let (a2, b2) = (a * a, b * b);
-    if b2 == 0.0 { 1.0 } else { a2 / (a2 + b2) }
+    R::select(b2.eq(R::splat(0.0)), R::splat(1.0), a2 / (a2 + b2))
 }
 
 #[cfg(test)]
@@ -193,27 +263,55 @@ mod tests {
         let scene = Scene::cornell();
         let lights = Lights::new(&scene);
         assert_eq!(lights.len(), 2);
-        let total_area: f32 = lights
-            .e1
-            .iter()
-            .zip(&lights.e2)
-            .map(|(a, b)| 0.5 * a.cross(*b).length())
-            .sum();
-        for k in 0..2 {
-            let tri = lights.triangle[k];
-            let area = 0.5 * lights.e1[k].cross(lights.e2[k]).length();
-            let p = lights.pdf_area(tri) * area;
-            assert!((p - area / total_area).abs() < 1e-6, "{p}");
+        let area = |e: &Emitter| 0.5 * glam::Vec3::from(e.e1).cross(e.e2.into()).length();
+        let total_area: f32 = lights.emitters.iter().map(area).sum();
+        for (k, e) in lights.emitters.iter().enumerate() {
+            let p = lights.pdf_area(lights.triangle[k]) * area(e);
+            assert!((p - area(e) / total_area).abs() < 1e-6, "{p}");
+            assert_eq!(e.pdf_area, lights.pdf_area(lights.triangle[k]));
         }
+        // Picks follow the running sums of the powers.
+        assert!(std::ptr::eq(lights.pick(0.0), &lights.emitters[0]));
+        assert!(std::ptr::eq(lights.pick(0.49), &lights.emitters[0]));
+        assert!(std::ptr::eq(lights.pick(0.51), &lights.emitters[1]));
+        assert!(std::ptr::eq(lights.pick(0.999_999_9), &lights.emitters[1]));
         // Non-emitters have density 0; samples lie on the light's plane.
         assert_eq!(lights.pdf_area(0), 0.0);
+        let y = scene.triangles[lights.triangle[0] as usize].v[0].y;
         let mut rng = PathRng::new(4, 4, 4);
         for _ in 0..1000 {
             let s = lights
                 .sample(rng.next_f32(), [rng.next_f32(), rng.next_f32()])
                 .unwrap();
-            assert!((s.point.y - scene.triangles[lights.triangle[0] as usize].v[0].y).abs() < 1e-6);
-            assert_eq!(s.emission, Vec3::splat(10.0));
+            assert!((s.point.y - y).abs() < 1e-6);
+            assert_eq!([s.emission.x, s.emission.y, s.emission.z], [10.0; 3]);
+        }
+        // No emitter, no sample.
+        let mut dark = scene.clone();
+        dark.materials
+            .iter_mut()
+            .for_each(|m| m.emission = glam::Vec3::ZERO);
+        assert!(Lights::new(&dark).sample(0.5, [0.5, 0.5]).is_none());
+    }
+
+    #[test]
+    fn eight_lanes_sample_the_points_one_lane_does() {
+        let lights = Lights::new(&Scene::cornell());
+        let mut rng = PathRng::new(8, 8, 8);
+        for _ in 0..1000 {
+            let picks: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+            let u: [[f32; 2]; 8] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
+            let e = Emitter::lanes(picks.map(|p| lights.pick(p)));
+            let p8 = LightPoint::on(&e, [0, 1].map(|c| f32x8::from(u.map(|u| u[c]))));
+            for l in 0..8 {
+                let p = lights.sample(picks[l], u[l]).unwrap();
+                let lane = |v: f32x8| v.to_array()[l].to_bits();
+                assert_eq!(
+                    [p.point.x, p.point.y, p.point.z].map(f32::to_bits),
+                    [lane(p8.point.x), lane(p8.point.y), lane(p8.point.z)]
+                );
+                assert_eq!(p.pdf_area.to_bits(), lane(p8.pdf_area));
+            }
         }
     }
 

@@ -5,11 +5,12 @@
 //! so the two compute the same terms.
 
 use super::bsdf::diffuse;
-use super::lights::{Lights, power_heuristic};
+use super::lights::{LightPoint, Lights, power_heuristic};
 use super::sampler::Sampler;
-use crate::math::V3;
+use crate::math::{Real, V3};
 use crate::scene::Integrator;
 use glam::Vec3;
+use wide::f32x8;
 
 /// How paths are traced: the estimator, the maximum depth and Russian
 /// roulette.
@@ -86,6 +87,42 @@ impl Estimator {
         (pick, sampler.next_2d(path))
     }
 
+    /// [`light_numbers`](Self::light_numbers) of up to eight paths, one per
+    /// lane.
+    #[inline]
+    pub fn light_numbers_8<S: Sampler>(
+        &self,
+        sampler: &S,
+        paths: &mut [S::Path],
+    ) -> (f32x8, [f32x8; 2]) {
+        let pick = sampler.next_8(paths);
+        (pick, sampler.next_2d_8(paths))
+    }
+
+    /// [`bsdf_numbers`](Self::bsdf_numbers) of up to eight paths, one per
+    /// lane.
+    #[inline]
+    pub fn bsdf_numbers_8<S: Sampler>(
+        &self,
+        sampler: &S,
+        paths: &mut [S::Path],
+    ) -> (f32x8, [f32x8; 2]) {
+        match self.integrator {
+            Integrator::Report => (f32x8::ZERO, sampler.next_2d_8(paths)),
+            Integrator::Bsdf => {
+                let lobe = sampler.next_8(paths);
+                (lobe, sampler.next_2d_8(paths))
+            }
+            Integrator::Nee => {
+                let lobe = sampler.next_8(paths);
+                for p in paths.iter_mut() {
+                    sampler.skip(p, 1);
+                }
+                (lobe, sampler.next_2d_8(paths))
+            }
+        }
+    }
+
     /// The vertex's scattering numbers: a lobe choice and a direction.
     #[inline]
     pub fn bsdf_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) -> (f32, [f32; 2]) {
@@ -108,56 +145,57 @@ impl Estimator {
 /// from `origin` along `dir` up to `t_max`, the path's radiance gains
 /// `throughput × radiance`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShadowRay {
+pub struct ShadowRay<R> {
     /// Where the ray starts: the path's vertex.
-    pub origin: Vec3,
+    pub origin: V3<R>,
     /// Unit direction towards the point on the emitter.
-    pub dir: Vec3,
+    pub dir: V3<R>,
     /// The segment ends here, just short of the emitter.
-    pub t_max: f32,
+    pub t_max: R,
     /// `f · cos θ · L_e · w / pdf` of the light sample (w its MIS weight).
-    pub radiance: Vec3,
+    pub radiance: V3<R>,
 }
 
 /// Next-event estimation at a diffuse vertex `p` whose normal facing the
-/// incoming ray is `n` and whose BRDF is `f = ρ/π`: a point on an emitter
-/// (`pick`, `u`: three numbers of the path), and the shadow ray towards
-/// it, weighted against cosine-weighted BSDF sampling by the power
-/// heuristic. `None` when nothing can arrive: no emitter, the emitter's
-/// back faces `p`, or the point lies below the surface.
-#[inline]
-pub fn connect(
-    lights: &Lights,
-    epsilon: f32,
-    p: Vec3,
-    n: Vec3,
-    f: Vec3,
-    pick: f32,
-    u: [f32; 2],
-) -> Option<ShadowRay> {
-    let light = lights.sample(pick, u)?;
+/// incoming ray is `n` and whose BRDF is `f = ρ/π`, towards the point
+/// `light` on an emitter: the shadow ray, weighted against cosine-weighted
+/// BSDF sampling by the power heuristic, and whether light can arrive at
+/// all (not when the emitter's back faces `p`, nor when the point lies
+/// below the surface or within `epsilon` of `p`). Written once for one
+/// lane and for eight, so both engines compute the same bits.
+#[inline(always)]
+pub fn connect<R: Real>(
+    light: &LightPoint<R>,
+    epsilon: R,
+    p: V3<R>,
+    n: V3<R>,
+    f: V3<R>,
+) -> (R::Mask, ShadowRay<R>) {
+    let zero = R::splat(0.0);
     let to = light.point - p;
-    let dist2 = to.length_squared();
+    let dist2 = to.dot(to);
     let dist = dist2.sqrt();
-    let dir = to / dist;
+    let dir = to.scale(R::splat(1.0) / dist);
     // Emission is one-sided: the emitter's front must face the vertex.
     let cos_light = -light.normal.dot(dir);
     let t_max = dist - epsilon;
-    if !(cos_light > 0.0 && t_max > epsilon) {
-        return None;
-    }
-    let (fcos, cos) = diffuse::eval(V3::from(n), V3::from(f), V3::from(dir));
-    if cos <= 0.0 {
-        return None;
-    }
+    let (fcos, cos) = diffuse::eval(n, f, dir);
+    let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos);
     let pdf_light = light.pdf_area * dist2 / cos_light;
-    let w = power_heuristic(pdf_light, diffuse::pdf_cosine(V3::from(n), V3::from(dir)));
-    Some(ShadowRay {
+    let w = power_heuristic(pdf_light, diffuse::pdf_cosine(n, dir));
+    let scale = w / pdf_light;
+    let radiance = V3::new(
+        fcos.x * light.emission.x * scale,
+        fcos.y * light.emission.y * scale,
+        fcos.z * light.emission.z * scale,
+    );
+    let ray = ShadowRay {
         origin: p,
         dir,
         t_max,
-        radiance: Vec3::from(fcos) * light.emission * (w / pdf_light),
-    })
+        radiance: V3::select(valid, radiance, V3::new(zero, zero, zero)),
+    };
+    (valid, ray)
 }
 
 /// The MIS weight of emission found by a scattered ray: the ray was drawn

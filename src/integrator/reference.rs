@@ -184,22 +184,16 @@ impl ReferenceTracer {
         }
         if est.samples_lights() {
             let (pick, u) = est.light_numbers(sampler, path);
-            if let Some(shadow) = connect(
-                &self.lights,
-                self.epsilon,
-                p,
-                Vec3::from(normal),
-                brdf,
-                pick,
-                u,
-            ) {
-                counters.rays += 1;
-                counters.shadow_rays += 1;
-                if self
-                    .closest_hit_before(p, shadow.dir, shadow.t_max)
-                    .is_none()
-                {
-                    radiance += shadow.radiance / survival;
+            if let Some(light) = self.lights.sample(pick, u) {
+                let (valid, shadow) =
+                    connect(&light, self.epsilon, V3::from(p), normal, V3::from(brdf));
+                if valid {
+                    counters.rays += 1;
+                    counters.shadow_rays += 1;
+                    let dir = Vec3::from(shadow.dir);
+                    if self.closest_hit_before(p, dir, shadow.t_max).is_none() {
+                        radiance += Vec3::from(shadow.radiance) / survival;
+                    }
                 }
             }
         }

@@ -20,6 +20,7 @@ pub use sobol::{Sobol, SobolPath};
 
 use rand_core::Rng;
 use rand_pcg::Pcg32;
+use wide::f32x8;
 
 /// Where the numbers of every path come from.
 pub trait Sampler: Send + Sync {
@@ -40,6 +41,29 @@ pub trait Sampler: Send + Sync {
         for _ in 0..n {
             self.next(path);
         }
+    }
+
+    /// Up to eight paths' numbers at their next dimension, one path per
+    /// lane, each the number [`next`](Self::next) would give it (lanes
+    /// past `paths.len()` hold numbers for no path).
+    #[inline]
+    fn next_8(&self, paths: &mut [Self::Path]) -> f32x8 {
+        let mut x = [0.0; 8];
+        for (x, p) in x.iter_mut().zip(paths) {
+            *x = self.next(p);
+        }
+        f32x8::from(x)
+    }
+
+    /// Up to eight paths' numbers at their next two dimensions, as
+    /// [`next_2d`](Self::next_2d) would give them.
+    #[inline]
+    fn next_2d_8(&self, paths: &mut [Self::Path]) -> [f32x8; 2] {
+        let (mut a, mut b) = ([0.0; 8], [0.0; 8]);
+        for (l, p) in paths.iter_mut().enumerate() {
+            [a[l], b[l]] = self.next_2d(p);
+        }
+        [f32x8::from(a), f32x8::from(b)]
     }
 
     /// The path's numbers at its next two dimensions.

@@ -93,6 +93,7 @@
 //!   1995: nested uniform scrambling.
 
 use super::{Sampler, splitmix64};
+use wide::{f32x8, i32x8, u32x8};
 
 /// Path dimensions per Sobol point: dimensions `2g` and `2g + 1` are the
 /// two coordinates of point `g`.
@@ -184,13 +185,8 @@ const fn byte_tables(c: &[u32; 32]) -> [[u32; 256]; 4] {
 /// `FastOwenScrambler`, Cycles' `reversed_bit_owen`), an improvement on
 /// Burley's Laine–Karras permutation. A bijection for every seed.
 #[inline(always)]
-pub fn owen_reversed(mut v: u32, seed: u32) -> u32 {
-    v ^= v.wrapping_mul(0x3d20_adea);
-    v = v.wrapping_add(seed);
-    v = v.wrapping_mul((seed >> 16) | 1);
-    v ^= v.wrapping_mul(0x0552_6c56);
-    v ^= v.wrapping_mul(0x53a2_2864);
-    v
+pub fn owen_reversed(v: u32, seed: u32) -> u32 {
+    owen_lanes(v, seed)
 }
 
 /// Nested uniform (Owen) scrambling in base 2 of a 32-bit fraction: bit
@@ -230,71 +226,262 @@ fn pixel_key(seed: u64, pixel: u32) -> u32 {
     x ^ (s >> 32) as u32
 }
 
-/// Salt of the hash giving a group's index shuffle seed and its first
-/// coordinate's scramble seed.
-const SALT_0: u64 = 0x5348_5546_464c_4531;
-/// Salt of the hash giving a group's second coordinate's scramble seed.
-const SALT_1: u64 = 0x5343_5241_4d42_4c45;
+/// Salts of the three seeds of a group: its index shuffle, and the
+/// scrambles of its two coordinates.
+const SALTS: [u32; 3] = [0x5348_5546, 0x5343_5230, 0x5343_5231];
 
-/// A bijective 64-bit hash (the SplitMix64 finaliser) of a pixel key, a
-/// group and a salt: its two halves are two independent 32-bit seeds.
+/// Chris Wellons' `lowbias32`: a bijective 32-bit mix with good
+/// avalanche, two multiplications.
 #[inline(always)]
-fn hash(key: u32, group: u32, salt: u64) -> u64 {
-    let mut z = ((key as u64) << 32 | group as u64) ^ salt;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+fn lowbias32<U: Lanes>(mut x: U) -> U {
+    x = x.xor(x.shr(16));
+    x = x.mul(U::splat(0x7feb_352d));
+    x = x.xor(x.shr(15));
+    x = x.mul(U::splat(0x846c_a68b));
+    x.xor(x.shr(16))
 }
 
-/// Group `group`'s index shuffle seed (low half) and its coordinate 0's
-/// scramble seed (high half).
+/// Seed `which` (0: the index shuffle, 1 and 2: the coordinates'
+/// scrambles) of group `group` of the pixel with key `key`.
+#[inline(always)]
+fn seed<U: Lanes>(key: U, group: U, which: usize) -> U {
+    let g = lowbias32(key.xor(group.mul(U::splat(0x9e37_79b9))));
+    lowbias32(g.xor(U::splat(SALTS[which])))
+}
+
+/// Group `group`'s index shuffle seed and its coordinate 0's scramble
+/// seed.
+#[cfg(test)]
 #[inline(always)]
 fn seeds_0(key: u32, group: u32) -> (u32, u32) {
-    let h = hash(key, group, SALT_0);
-    (h as u32, (h >> 32) as u32)
+    (seed(key, group, 0), seed(key, group, 1))
 }
 
 /// Group `group`'s coordinate 1's scramble seed.
+#[cfg(test)]
 #[inline(always)]
 fn seed_1(key: u32, group: u32) -> u32 {
-    (hash(key, group, SALT_1) >> 32) as u32
+    seed(key, group, 2)
+}
+
+/// What the sampler's arithmetic needs of one lane (`u32`) or eight
+/// (`wide::u32x8`): wrapping integer operations, each lane the same as the
+/// scalar one, so a number is the same bits however many are drawn at once.
+pub(crate) trait Lanes: Copy {
+    fn splat(x: u32) -> Self;
+    fn xor(self, o: Self) -> Self;
+    fn and(self, o: Self) -> Self;
+    fn or(self, o: Self) -> Self;
+    fn add(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn shr(self, k: u32) -> Self;
+    fn shl(self, k: u32) -> Self;
+    /// `table[self & 255]` per lane.
+    fn byte_lookup(self, table: &[u32; 256]) -> Self;
+    /// The top 24 bits as a float in `[0, 1)`.
+    fn to_unit(self) -> Self::Float;
+    type Float;
+}
+
+impl Lanes for u32 {
+    type Float = f32;
+    #[inline(always)]
+    fn splat(x: u32) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn xor(self, o: Self) -> Self {
+        self ^ o
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        self & o
+    }
+    #[inline(always)]
+    fn or(self, o: Self) -> Self {
+        self | o
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        self.wrapping_add(o)
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self.wrapping_mul(o)
+    }
+    #[inline(always)]
+    fn shr(self, k: u32) -> Self {
+        self >> k
+    }
+    #[inline(always)]
+    fn shl(self, k: u32) -> Self {
+        self << k
+    }
+    #[inline(always)]
+    fn byte_lookup(self, table: &[u32; 256]) -> Self {
+        table[(self & 255) as usize]
+    }
+    #[inline(always)]
+    fn to_unit(self) -> f32 {
+        bits_to_f32(self)
+    }
+}
+
+impl Lanes for u32x8 {
+    type Float = f32x8;
+    #[inline(always)]
+    fn splat(x: u32) -> Self {
+        u32x8::splat(x)
+    }
+    #[inline(always)]
+    fn xor(self, o: Self) -> Self {
+        self ^ o
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        self & o
+    }
+    #[inline(always)]
+    fn or(self, o: Self) -> Self {
+        self | o
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        self + o
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self * o
+    }
+    #[inline(always)]
+    fn shr(self, k: u32) -> Self {
+        self >> k
+    }
+    #[inline(always)]
+    fn shl(self, k: u32) -> Self {
+        self << k
+    }
+    #[inline(always)]
+    fn byte_lookup(self, table: &[u32; 256]) -> Self {
+        u32x8::from(self.to_array().map(|b| table[(b & 255) as usize]))
+    }
+    #[inline(always)]
+    fn to_unit(self) -> f32x8 {
+        // Below 2^24: the conversion through i32 is exact.
+        let top: i32x8 = bytemuck::cast(self >> 8);
+        top.round_float() * f32x8::splat(1.0 / 16_777_216.0)
+    }
+}
+
+/// Nested uniform (Owen) scrambling in base 2 of a bit-reversed word, any
+/// number of lanes: [`owen_reversed`].
+#[inline(always)]
+fn owen_lanes<U: Lanes>(mut v: U, seed: U) -> U {
+    v = v.xor(v.mul(U::splat(0x3d20_adea)));
+    v = v.add(seed);
+    v = v.mul(seed.shr(16).or(U::splat(1)));
+    v = v.xor(v.mul(U::splat(0x0552_6c56)));
+    v.xor(v.mul(U::splat(0x53a2_2864)))
+}
+
+/// The bits of `x` in reverse order, any number of lanes.
+#[inline(always)]
+fn reverse_lanes<U: Lanes>(x: U) -> U {
+    let swap = |x: U, k: u32, m: u32| x.shr(k).and(U::splat(m)).or(x.and(U::splat(m)).shl(k));
+    let x = swap(x, 1, 0x5555_5555);
+    let x = swap(x, 2, 0x3333_3333);
+    let x = swap(x, 4, 0x0f0f_0f0f);
+    let x = swap(x, 8, 0x00ff_00ff);
+    x.shr(16).or(x.shl(16))
 }
 
 /// Coordinate `j` of the Sobol point at reversed (shuffled) index `r`,
-/// bit-reversed.
+/// bit-reversed, any number of lanes.
 #[inline(always)]
-fn sobol_reversed(r: u32, j: u32) -> u32 {
-    let t = &REVERSED[j as usize];
-    t[0][(r & 255) as usize]
-        ^ t[1][((r >> 8) & 255) as usize]
-        ^ t[2][((r >> 16) & 255) as usize]
-        ^ t[3][(r >> 24) as usize]
+fn sobol_reversed_lanes<U: Lanes>(r: U, j: usize) -> U {
+    let t = &REVERSED[j];
+    r.byte_lookup(&t[0])
+        .xor(r.shr(8).byte_lookup(&t[1]))
+        .xor(r.shr(16).byte_lookup(&t[2]))
+        .xor(r.shr(24).byte_lookup(&t[3]))
+}
+
+/// Dimension `dim` (coordinate `j` of group `group`) of the samples at
+/// pixel keys `key` and reversed indices `reversed`, as a bit-reversed
+/// fraction, any number of lanes.
+#[inline(always)]
+fn reversed_lanes<U: Lanes>(key: U, reversed: U, group: U, j: usize) -> U {
+    let r = owen_lanes(reversed, seed(key, group, 0));
+    owen_lanes(sobol_reversed_lanes(r, j), seed(key, group, 1 + j))
+}
+
+/// Both coordinates of group `group`'s points, bit-reversed (one index
+/// shuffle for the two), any number of lanes.
+#[inline(always)]
+fn reversed_pair_lanes<U: Lanes>(key: U, reversed: U, group: U) -> [U; 2] {
+    let r = owen_lanes(reversed, seed(key, group, 0));
+    [
+        owen_lanes(sobol_reversed_lanes(r, 0), seed(key, group, 1)),
+        owen_lanes(sobol_reversed_lanes(r, 1), seed(key, group, 2)),
+    ]
 }
 
 /// Dimension `dim` of the sample at pixel key `key` and reversed sample
 /// index `reversed_sample`, as a bit-reversed 32-bit fraction.
 #[inline(always)]
 fn reversed_at(key: u32, reversed_sample: u32, dim: u32) -> u32 {
-    let (group, j) = (dim / GROUP, dim % GROUP);
-    let (shuffle, scramble_0) = seeds_0(key, group);
-    let scramble = if j == 0 {
-        scramble_0
-    } else {
-        seed_1(key, group)
-    };
-    let r = owen_reversed(reversed_sample, shuffle);
-    owen_reversed(sobol_reversed(r, j), scramble)
+    reversed_lanes(key, reversed_sample, dim / GROUP, (dim % GROUP) as usize)
 }
 
 /// Both coordinates of group `group`'s point, bit-reversed.
 #[inline(always)]
 fn reversed_pair(key: u32, reversed_sample: u32, group: u32) -> [u32; 2] {
-    let (shuffle, scramble_0) = seeds_0(key, group);
-    let r = owen_reversed(reversed_sample, shuffle);
-    [
-        owen_reversed(sobol_reversed(r, 0), scramble_0),
-        owen_reversed(sobol_reversed(r, 1), seed_1(key, group)),
-    ]
+    reversed_pair_lanes(key, reversed_sample, group)
+}
+
+/// Eight paths' numbers at their next dimension (the first `paths.len()`
+/// lanes; the others are for nothing).
+#[inline]
+fn next_lanes(paths: &mut [SobolPath]) -> f32x8 {
+    let (key, reversed, dim) = lanes_of(paths);
+    let group = dim >> 1;
+    let j = paths[0].dim % GROUP;
+    let z = if paths.iter().all(|p| p.dim % GROUP == j) {
+        reversed_lanes(key, reversed, group, j as usize)
+    } else {
+        // Lanes at both coordinates: compute both, keep each lane's own.
+        let odd = (dim & u32x8::splat(1)).simd_eq(u32x8::splat(1));
+        let [a, b] = reversed_pair_lanes(key, reversed, group);
+        odd.select(b, a)
+    };
+    for p in paths.iter_mut() {
+        p.dim = p.dim.wrapping_add(1);
+    }
+    reverse_lanes(z).to_unit()
+}
+
+/// Eight paths' numbers at their next two dimensions.
+#[inline]
+fn next_2d_lanes(paths: &mut [SobolPath]) -> [f32x8; 2] {
+    if paths.iter().any(|p| p.dim % GROUP != 0) {
+        // Straddling a group: two single draws.
+        return [next_lanes(paths), next_lanes(paths)];
+    }
+    let (key, reversed, dim) = lanes_of(paths);
+    let pair = reversed_pair_lanes(key, reversed, dim >> 1);
+    for p in paths.iter_mut() {
+        p.dim = p.dim.wrapping_add(2);
+    }
+    pair.map(|z| reverse_lanes(z).to_unit())
+}
+
+/// The keys, reversed indices and dimensions of up to eight paths (lanes
+/// past the last repeat the first).
+#[inline(always)]
+fn lanes_of(paths: &[SobolPath]) -> (u32x8, u32x8, u32x8) {
+    let p = |l: usize| paths.get(l).unwrap_or(&paths[0]);
+    let f = |g: fn(&SobolPath) -> u32| u32x8::from(std::array::from_fn::<u32, 8, _>(|l| g(p(l))));
+    (f(|p| p.key), f(|p| p.reversed_sample), f(|p| p.dim))
 }
 
 /// A bit-reversed 32-bit fraction's top 24 bits as an `f32` in `[0, 1)`:
@@ -417,6 +604,16 @@ impl Sampler for Sobol {
         path.dim = path.dim.wrapping_add(n);
     }
 
+    #[inline]
+    fn next_8(&self, paths: &mut [SobolPath]) -> f32x8 {
+        next_lanes(paths)
+    }
+
+    #[inline]
+    fn next_2d_8(&self, paths: &mut [SobolPath]) -> [f32x8; 2] {
+        next_2d_lanes(paths)
+    }
+
     /// Both coordinates of one point when the path is at an even
     /// dimension (one index shuffle for the two); else two [`next`]s.
     ///
@@ -490,7 +687,7 @@ mod tests {
             OneShufflePerPixel => owen_reversed(reversed, seeds_0(key, 0).0),
             _ => owen_reversed(reversed, shuffle),
         };
-        let y = sobol_reversed(r, j);
+        let y = sobol_reversed_lanes(r, j as usize);
         match variant {
             NoOwen => y.reverse_bits(),
             RotationNotOwen => y.reverse_bits().wrapping_add(scramble),
@@ -564,9 +761,39 @@ mod tests {
             x = lowbias32(x.wrapping_add(1));
             for j in 0..GROUP {
                 let want = sobol_bits(x.reverse_bits(), j).reverse_bits();
-                assert_eq!(sobol_reversed(x, j), want);
+                assert_eq!(sobol_reversed_lanes(x, j as usize), want);
             }
             assert_eq!(reversed_to_f32(x), bits_to_f32(x.reverse_bits()));
+            assert_eq!(reverse_lanes(x), x.reverse_bits());
+        }
+    }
+
+    #[test]
+    fn eight_lanes_draw_the_numbers_one_lane_draws() {
+        // Paths at mixed dimensions (even, odd, straddling), every count of
+        // lanes: next_8 / next_2d_8 give each path its own next numbers.
+        let sobol = Sobol::new(17);
+        for lanes in 1..=8 {
+            for start_dims in [[0u32; 8], [1; 8], [0, 1, 2, 3, 4, 5, 6, 7], [4998; 8]] {
+                let mut paths: Vec<SobolPath> = (0..lanes)
+                    .map(|l| {
+                        let mut p = sobol.start(1000 + l as u32, 3 * l as u32);
+                        sobol.skip(&mut p, start_dims[l]);
+                        p
+                    })
+                    .collect();
+                let mut one = paths.clone();
+                for _ in 0..5 {
+                    let x = sobol.next_8(&mut paths).to_array();
+                    let [a, b] = sobol.next_2d_8(&mut paths).map(|v| v.to_array());
+                    for (l, p) in one.iter_mut().enumerate() {
+                        assert_eq!(x[l].to_bits(), sobol.next(p).to_bits());
+                        let [c, d] = sobol.next_2d(p);
+                        assert_eq!([a[l], b[l]].map(f32::to_bits), [c, d].map(f32::to_bits));
+                    }
+                }
+                assert_eq!(paths, one);
+            }
         }
     }
 

@@ -70,11 +70,7 @@ pub fn diffuse<S: Sampler>(
             gather8(&tables.brdf[1], &tris),
             gather8(&tables.brdf[2], &tris),
         );
-        let (mut x1, mut x2) = ([0.0f32; 8], [0.0f32; 8]);
-        for (l, path) in queue.sampler[i..i + lanes].iter_mut().enumerate() {
-            let (_lobe, u) = estimator.bsdf_numbers(sampler, path);
-            [x1[l], x2[l]] = u;
-        }
+        let (_lobe, u) = estimator.bsdf_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
         let load3 = |cols: &[Vec<f32>; 3]| {
             V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
         };
@@ -85,7 +81,6 @@ pub fn diffuse<S: Sampler>(
 
         let (_, n) = facing(normal, d);
         let origin = hit_point(o, d, t);
-        let u = [f32x8::from(x1), f32x8::from(x2)];
         let s = if report {
             diffuse::sample_uniform(n, brdf, u)
         } else {

@@ -19,11 +19,21 @@ pub fn generate<S: Sampler>(
     let n = pixels.len() * samples.len();
     queue.set_len(n);
     let paths = pixels.flat_map(|p| samples.clone().map(move |s| (p, s)));
-    let rows = queue.rows_mut(n);
-    for (row, (pixel, sample)) in rows.zip(paths) {
-        let (x, y) = (pixel % frame.width, pixel / frame.width);
-        let mut path = sampler.start(pixel, sample);
-        let (o, d) = frame.camera.pixel_ray(x, y, sampler.next_2d(&mut path));
-        row.set_camera_ray(pixel, path, o.to_array(), d.to_array());
+    for (i, (pixel, sample)) in paths.enumerate() {
+        queue.pixel[i] = pixel;
+        queue.sampler[i] = sampler.start(pixel, sample);
+    }
+    // Eight paths' numbers at a time, then their rays.
+    for i in (0..n).step_by(8) {
+        let lanes = (n - i).min(8);
+        let [ux, uy] = sampler
+            .next_2d_8(&mut queue.sampler[i..i + lanes])
+            .map(|v| v.to_array());
+        for l in 0..lanes {
+            let pixel = queue.pixel[i + l];
+            let (x, y) = (pixel % frame.width, pixel / frame.width);
+            let (o, d) = frame.camera.pixel_ray(x, y, [ux[l], uy[l]]);
+            queue.set_camera_ray(i + l, o.to_array(), d.to_array());
+        }
     }
 }

@@ -1,17 +1,17 @@
 //! Stage *light*: next-event estimation — at every path's vertex, a point
 //! on an emitter and the shadow ray towards it, queued for the *shadow*
-//! stage.
+//! stage. Eight paths at a time.
 
-use super::queue::PathQueue;
+use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::facing;
-use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, connect};
+use crate::integrator::lights::{Emitter, LightPoint, Lights};
+use crate::integrator::nee::{Estimator, ShadowRay, connect};
 use crate::integrator::sampler::Sampler;
-use crate::math::V3;
-use glam::Vec3;
+use crate::math::{V3, Vec3x8};
+use wide::f32x8;
 
 /// Sample an emitter from every path's vertex (three numbers per path)
 /// and queue the shadow rays that may carry light.
@@ -22,16 +22,54 @@ pub fn sample_lights<S: Sampler>(
     shadows: &mut ShadowQueue,
 ) {
     shadows.clear();
-    for i in 0..queue.len() {
-        let (pick, u) = estimator.light_numbers(sampler, &mut queue.sampler[i]);
-        let tri = queue.hit[i] as usize;
-        let col = |c: &[Vec<f32>; 3], i: usize| V3::new(c[0][i], c[1][i], c[2][i]);
-        let (o, d) = (col(&queue.o, i), col(&queue.d, i));
-        let p = Vec3::from(hit_point(o, d, queue.t[i]));
-        let (_, n) = facing(col(&tables.normals, tri), d);
-        let brdf = Vec3::from(col(&tables.brdf, tri));
-        if let Some(ray) = connect(lights, tables.epsilon, p, Vec3::from(n), brdf, pick, u) {
-            shadows.push(i as u32, ray);
+    let n = queue.len();
+    for i in (0..n).step_by(8) {
+        let lanes = (n - i).min(8);
+        // Each lane's emitter and point on it; lanes past the last path
+        // get no emitter (never valid).
+        let (pick, u) = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
+        let pick = pick.to_array();
+        let mut emitters = [&Emitter::NONE; 8];
+        let mut tris = [queue.hit[i] as usize; 8];
+        for l in 0..lanes {
+            emitters[l] = lights.pick(pick[l]);
+            tris[l] = queue.hit[i + l] as usize;
         }
+        let light = LightPoint::on(&Emitter::lanes(emitters), u);
+        let gather = |cols: &[Vec<f32>; 3]| -> Vec3x8 {
+            let g = |c: &Vec<f32>| f32x8::from(tris.map(|t| c[t]));
+            V3::new(g(&cols[0]), g(&cols[1]), g(&cols[2]))
+        };
+        let load3 = |cols: &[Vec<f32>; 3]| {
+            V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
+        };
+        let d = load3(&queue.d);
+        let p = hit_point(load3(&queue.o), d, load8(&queue.t, i));
+        let (_, n) = facing(gather(&tables.normals), d);
+        let (valid, ray) = connect(
+            &light,
+            f32x8::splat(tables.epsilon),
+            p,
+            n,
+            gather(&tables.brdf),
+        );
+        let valid = valid.to_bitmask();
+        for l in 0..lanes {
+            if valid & (1 << l) != 0 {
+                shadows.push((i + l) as u32, lane_of(&ray, l));
+            }
+        }
+    }
+}
+
+/// Lane `l` of eight shadow rays.
+#[inline(always)]
+fn lane_of(r: &ShadowRay<f32x8>, l: usize) -> ShadowRay<f32> {
+    let v = |v: &Vec3x8| V3::new(v.x.to_array()[l], v.y.to_array()[l], v.z.to_array()[l]);
+    ShadowRay {
+        origin: v(&r.origin),
+        dir: v(&r.dir),
+        t_max: r.t_max.to_array()[l],
+        radiance: v(&r.radiance),
     }
 }

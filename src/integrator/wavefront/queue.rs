@@ -87,37 +87,17 @@ impl<P> PathQueue<P> {
 }
 
 impl<P: Copy> PathQueue<P> {
-    /// Mutable views of rows `0..n` of the columns a new path sets.
-    pub fn rows_mut(&mut self, n: usize) -> impl Iterator<Item = NewPath<'_, P>> {
-        let [ox, oy, oz] = &mut self.o;
-        let [dx, dy, dz] = &mut self.d;
-        let [br, bg, bb] = &mut self.beta;
-        let [lr, lg, lb] = &mut self.radiance;
-        fn f(c: &mut [f32], n: usize) -> std::slice::IterMut<'_, f32> {
-            c[..n].iter_mut()
+    /// Row `i` becomes a camera ray `(o, d)`: throughput 1, no radiance
+    /// yet, drawn by no density (the pixel and numbers are set apart).
+    #[inline(always)]
+    pub fn set_camera_ray(&mut self, i: usize, o: [f32; 3], d: [f32; 3]) {
+        for c in 0..3 {
+            self.o[c][i] = o[c];
+            self.d[c][i] = d[c];
+            self.beta[c][i] = 1.0;
+            self.radiance[c][i] = 0.0;
         }
-        // Zipped column iterators: no per-row bounds checks.
-        self.pixel[..n]
-            .iter_mut()
-            .zip(self.sampler[..n].iter_mut().zip(self.pdf[..n].iter_mut()))
-            .zip(f(ox, n).zip(f(oy, n)).zip(f(oz, n)))
-            .zip(f(dx, n).zip(f(dy, n)).zip(f(dz, n)))
-            .zip(f(br, n).zip(f(bg, n)).zip(f(bb, n)))
-            .zip(f(lr, n).zip(f(lg, n)).zip(f(lb, n)))
-            .map(
-                |(
-                    ((((pixel, (sampler, pdf)), ((ox, oy), oz)), ((dx, dy), dz)), ((br, bg), bb)),
-                    ((lr, lg), lb),
-                )| NewPath {
-                    pixel,
-                    sampler,
-                    pdf,
-                    o: [ox, oy, oz],
-                    d: [dx, dy, dz],
-                    beta: [br, bg, bb],
-                    radiance: [lr, lg, lb],
-                },
-            )
+        self.pdf[i] = 0.0;
     }
 
     /// Copy path `from` into row `to` (the intersect outputs too).
@@ -170,33 +150,6 @@ pub fn load8(col: &[f32], i: usize) -> f32x8 {
 #[inline(always)]
 pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
     col[i..i + 8].copy_from_slice(&v.to_array());
-}
-
-/// One row of a [`PathQueue`], as the generate stage writes it.
-pub struct NewPath<'a, P> {
-    pixel: &'a mut u32,
-    sampler: &'a mut P,
-    pdf: &'a mut f32,
-    o: [&'a mut f32; 3],
-    d: [&'a mut f32; 3],
-    beta: [&'a mut f32; 3],
-    radiance: [&'a mut f32; 3],
-}
-
-impl<P> NewPath<'_, P> {
-    /// A camera ray: throughput 1, no radiance yet.
-    #[inline(always)]
-    pub fn set_camera_ray(self, pixel: u32, sampler: P, o: [f32; 3], d: [f32; 3]) {
-        *self.pixel = pixel;
-        *self.sampler = sampler;
-        *self.pdf = 0.0;
-        for c in 0..3 {
-            *self.o[c] = o[c];
-            *self.d[c] = d[c];
-            *self.beta[c] = 1.0;
-            *self.radiance[c] = 0.0;
-        }
-    }
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ use crate::integrator::nee::ShadowRay;
 #[derive(Debug, Default)]
 pub struct ShadowQueue {
     row: Vec<u32>,
-    ray: Vec<ShadowRay>,
+    ray: Vec<ShadowRay<f32>>,
 }
 
 impl ShadowQueue {
@@ -21,7 +21,7 @@ impl ShadowQueue {
     }
 
     /// Queue `ray` for the path in row `row`.
-    pub fn push(&mut self, row: u32, ray: ShadowRay) {
+    pub fn push(&mut self, row: u32, ray: ShadowRay<f32>) {
         self.row.push(row);
         self.ray.push(ray);
     }
@@ -37,19 +37,13 @@ impl ShadowQueue {
 /// number of rays traced.
 pub fn shadow<P>(queue: &mut PathQueue<P>, shadows: &ShadowQueue, bvh: &Bvh, epsilon: f32) -> u64 {
     for (&row, ray) in shadows.row.iter().zip(&shadows.ray) {
-        if bvh
-            .closest_hit(ray.origin, ray.dir, epsilon, ray.t_max)
-            .is_some()
-        {
+        let (origin, dir) = (ray.origin.into(), ray.dir.into());
+        if bvh.closest_hit(origin, dir, epsilon, ray.t_max).is_some() {
             continue;
         }
         let i = row as usize;
-        for ((radiance, beta), l) in queue
-            .radiance
-            .iter_mut()
-            .zip(&queue.beta)
-            .zip(ray.radiance.to_array())
-        {
+        let l = [ray.radiance.x, ray.radiance.y, ray.radiance.z];
+        for ((radiance, beta), l) in queue.radiance.iter_mut().zip(&queue.beta).zip(l) {
             radiance[i] += beta[i] * l;
         }
     }
