@@ -150,35 +150,6 @@ const fn generator(s: u32, a: u32, m_init: &[u64]) -> [u32; 32] {
     c
 }
 
-/// The generator matrices in the bit-reversed domain, by byte: the
-/// reversed coordinate of Sobol dimension `j` for the reversed index `r` is
-/// `XOR_b REVERSED[j][b][(r >> 8b) & 255]`. Column `t` of the reversed
-/// matrix is `reverse(C_j[31 - t])`.
-static REVERSED: [[[u32; 256]; 4]; GROUP as usize] =
-    [byte_tables(&GENERATORS[0]), byte_tables(&GENERATORS[1])];
-
-const fn byte_tables(c: &[u32; 32]) -> [[u32; 256]; 4] {
-    let mut t = [[0u32; 256]; 4];
-    let mut b = 0;
-    while b < 4 {
-        let mut v = 0;
-        while v < 256 {
-            let mut x = 0u32;
-            let mut bit = 0;
-            while bit < 8 {
-                if (v >> bit) & 1 == 1 {
-                    x ^= c[31 - (8 * b + bit)].reverse_bits();
-                }
-                bit += 1;
-            }
-            t[b][v] = x;
-            v += 1;
-        }
-        b += 1;
-    }
-    t
-}
-
 /// Nested uniform (Owen) scrambling in base 2 of a bit-reversed word:
 /// bit `k` is flipped by a function of `seed` and bits `0..k` only (every
 /// step carries upwards only). Vegdahl's hash (pbrt-v4's
@@ -276,8 +247,6 @@ pub(crate) trait Lanes: Copy {
     fn mul(self, o: Self) -> Self;
     fn shr(self, k: u32) -> Self;
     fn shl(self, k: u32) -> Self;
-    /// `table[self & 255]` per lane.
-    fn byte_lookup(self, table: &[u32; 256]) -> Self;
     /// The top 24 bits as a float in `[0, 1)`.
     fn to_unit(self) -> Self::Float;
     type Float;
@@ -316,10 +285,6 @@ impl Lanes for u32 {
     #[inline(always)]
     fn shl(self, k: u32) -> Self {
         self << k
-    }
-    #[inline(always)]
-    fn byte_lookup(self, table: &[u32; 256]) -> Self {
-        table[(self & 255) as usize]
     }
     #[inline(always)]
     fn to_unit(self) -> f32 {
@@ -362,10 +327,6 @@ impl Lanes for u32x8 {
         self << k
     }
     #[inline(always)]
-    fn byte_lookup(self, table: &[u32; 256]) -> Self {
-        u32x8::from(self.to_array().map(|b| table[(b & 255) as usize]))
-    }
-    #[inline(always)]
     fn to_unit(self) -> f32x8 {
         // Below 2^24: the conversion through i32 is exact.
         let top: i32x8 = bytemuck::cast(self >> 8);
@@ -396,14 +357,34 @@ fn reverse_lanes<U: Lanes>(x: U) -> U {
 }
 
 /// Coordinate `j` of the Sobol point at reversed (shuffled) index `r`,
-/// bit-reversed, any number of lanes.
+/// bit-reversed, any number of lanes, computed rather than looked up:
+/// dimension 1 (van der Corput) is the index itself, so its reversed
+/// coordinate is `reverse(r)`; dimension 2's matrix is Pascal's triangle
+/// mod 2, whose entry `(q, k)` is odd exactly when the bits of `q` are a
+/// subset of those of `k` (Lucas), so its coordinate's bit `31 - q` is the
+/// XOR of the index bits at the supersets of `q`: a superset transform in
+/// five shift-and-XOR steps ([`superset_xor`]) of the same `reverse(r)`.
 #[inline(always)]
 fn sobol_reversed_lanes<U: Lanes>(r: U, j: usize) -> U {
-    let t = &REVERSED[j];
-    r.byte_lookup(&t[0])
-        .xor(r.shr(8).byte_lookup(&t[1]))
-        .xor(r.shr(16).byte_lookup(&t[2]))
-        .xor(r.shr(24).byte_lookup(&t[3]))
+    let index = reverse_lanes(r);
+    if j == 0 { index } else { superset_xor(index) }
+}
+
+/// Bit `p` of the result is the XOR of the bits of `x` at the positions
+/// that contain `p`'s bits (the superset, or zeta, transform over GF(2)).
+#[inline(always)]
+fn superset_xor<U: Lanes>(mut y: U) -> U {
+    const M: [u32; 5] = [
+        0x5555_5555,
+        0x3333_3333,
+        0x0f0f_0f0f,
+        0x00ff_00ff,
+        0x0000_ffff,
+    ];
+    for (b, m) in M.into_iter().enumerate() {
+        y = y.xor(y.shr(1 << b).and(U::splat(m)));
+    }
+    y
 }
 
 /// Dimension `dim` (coordinate `j` of group `group`) of the samples at
@@ -419,10 +400,10 @@ fn reversed_lanes<U: Lanes>(key: U, reversed: U, group: U, j: usize) -> U {
 /// shuffle for the two), any number of lanes.
 #[inline(always)]
 fn reversed_pair_lanes<U: Lanes>(key: U, reversed: U, group: U) -> [U; 2] {
-    let r = owen_lanes(reversed, seed(key, group, 0));
+    let index = reverse_lanes(owen_lanes(reversed, seed(key, group, 0)));
     [
-        owen_lanes(sobol_reversed_lanes(r, 0), seed(key, group, 1)),
-        owen_lanes(sobol_reversed_lanes(r, 1), seed(key, group, 2)),
+        owen_lanes(index, seed(key, group, 1)),
+        owen_lanes(superset_xor(index), seed(key, group, 2)),
     ]
 }
 
@@ -755,7 +736,7 @@ mod tests {
     }
 
     #[test]
-    fn reversed_tables_are_the_generators_reversed() {
+    fn computed_coordinates_are_the_generators_applied() {
         let mut x = 0x1234_5678u32;
         for _ in 0..10_000 {
             x = lowbias32(x.wrapping_add(1));
