@@ -144,6 +144,7 @@ fn the_stats_file_has_every_field_and_they_agree() {
         "seconds",
         "paths",
         "rays",
+        "shadow_rays",
         "rays_per_second",
         "paths_per_second",
     ] {
@@ -164,12 +165,14 @@ fn the_stats_file_has_every_field_and_they_agree() {
         (16, 12, 3, 4)
     );
     assert_eq!((u("seed"), u("threads")), (77, 2));
-    let (paths, rays) = (u("paths"), u("rays"));
+    let (paths, rays, shadow) = (u("paths"), u("rays"), u("shadow_rays"));
     assert_eq!(paths, 16 * 12 * 3);
-    // At least the camera ray, at most max_depth rays per path.
+    // At least the camera ray, at most max_depth closest-hit rays per path,
+    // and at most one shadow ray per vertex that scatters.
+    let closest = rays - shadow;
     assert!(
-        rays >= paths && rays <= paths * 4,
-        "rays {rays}, paths {paths}"
+        closest >= paths && closest <= paths * 4 && shadow <= paths * 3,
+        "rays {rays} ({shadow} shadow), paths {paths}"
     );
     let seconds = f("seconds");
     assert!(seconds > 0.0 && seconds < 60.0, "seconds {seconds}");

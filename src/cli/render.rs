@@ -572,6 +572,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         elapsed_seconds: report.elapsed_seconds,
         paths: counters.paths,
         rays: counters.rays,
+        shadow_rays: counters.shadow_rays,
         rays_per_second: per_second(counters.rays),
         paths_per_second: per_second(counters.paths),
         invalid_samples: film.invalid_samples,

@@ -71,6 +71,8 @@ pub struct RenderStats {
     pub paths: u64,
     /// Rays cast by this run: closest-hit queries and shadow rays.
     pub rays: u64,
+    /// Of `rays`, the shadow rays (occlusion queries toward a light).
+    pub shadow_rays: u64,
     /// `rays / seconds`.
     pub rays_per_second: f64,
     /// `paths / seconds`.

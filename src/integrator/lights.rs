@@ -29,6 +29,7 @@ pub struct Lights {
 /// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, its
 /// radiance and its sampling density.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Emitter<R = f32> {
     /// Vertex 0.
     pub v0: V3<R>,
@@ -44,6 +45,9 @@ pub struct Emitter<R = f32> {
     pub pdf_area: R,
 }
 
+/// The largest `f32` below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
 const ZERO: V3<f32> = V3 {
     x: 0.0,
     y: 0.0,
@@ -51,6 +55,31 @@ const ZERO: V3<f32> = V3 {
 };
 
 impl Emitter {
+    /// The emitter's 16 floats, in field order.
+    #[inline(always)]
+    fn floats(&self) -> [f32; 16] {
+        let v = |v: V3<f32>| [v.x, v.y, v.z];
+        let [a, b, c, d, e] = [self.v0, self.e1, self.e2, self.normal, self.emission].map(v);
+        [
+            a[0],
+            a[1],
+            a[2],
+            b[0],
+            b[1],
+            b[2],
+            c[0],
+            c[1],
+            c[2],
+            d[0],
+            d[1],
+            d[2],
+            e[0],
+            e[1],
+            e[2],
+            self.pdf_area,
+        ]
+    }
+
     /// No emitter: a point sampled on it never carries light (its normal
     /// is zero, so it faces nothing).
     pub const NONE: Emitter = Emitter {
@@ -67,21 +96,22 @@ impl Emitter<f32x8> {
     /// Eight emitters, one per lane.
     #[inline(always)]
     pub fn lanes(e: [&Emitter; 8]) -> Self {
-        let v3 = |f: fn(&Emitter) -> V3<f32>| {
-            let v = e.map(f);
-            V3::new(
-                f32x8::from(v.map(|v| v.x)),
-                f32x8::from(v.map(|v| v.y)),
-                f32x8::from(v.map(|v| v.z)),
-            )
-        };
+        // Transposed field by field: an emitter is 16 plain floats.
+        let mut cols = [[0.0f32; 8]; 16];
+        for (l, e) in e.iter().enumerate() {
+            for (col, x) in cols.iter_mut().zip(e.floats()) {
+                col[l] = x;
+            }
+        }
+        let c = cols.map(f32x8::from);
+        let v3 = |k: usize| V3::new(c[k], c[k + 1], c[k + 2]);
         Self {
-            v0: v3(|e| e.v0),
-            e1: v3(|e| e.e1),
-            e2: v3(|e| e.e2),
-            normal: v3(|e| e.normal),
-            emission: v3(|e| e.emission),
-            pdf_area: f32x8::from(e.map(|e| e.pdf_area)),
+            v0: v3(0),
+            e1: v3(3),
+            e2: v3(6),
+            normal: v3(9),
+            emission: v3(12),
+            pdf_area: c[15],
         }
     }
 }
@@ -170,27 +200,35 @@ impl Lights {
         self.triangle.len()
     }
 
-    /// The emitter that `pick` in `[0, 1)` chooses, by power
-    /// ([`Emitter::NONE`] when the scene has none).
+    /// The emitter that `u0` in `[0, 1)` chooses, by power, and `u0`
+    /// stretched back to `[0, 1)` over that emitter's share of the unit
+    /// interval ([`Emitter::NONE`] when the scene has none). A 2D point
+    /// `(u0, u1)` thus picks an emitter and a point on it: stratified
+    /// points stay stratified over all the emitters together, and a
+    /// sample needs no number of its own to pick with.
     #[inline]
-    pub fn pick(&self, pick: f32) -> &Emitter {
-        // The first emitter whose running sum exceeds `pick`.
-        match self.cdf.len() {
-            0 => &Emitter::NONE,
-            1 => &self.emitters[0],
-            n => &self.emitters[self.cdf.partition_point(|&c| c <= pick).min(n - 1)],
-        }
+    pub fn pick(&self, u0: f32) -> (&Emitter, f32) {
+        let k = match self.cdf.len() {
+            0 => return (&Emitter::NONE, u0),
+            1 => return (&self.emitters[0], u0),
+            // The first emitter whose running sum exceeds `u0`.
+            n => self.cdf.partition_point(|&c| c <= u0).min(n - 1),
+        };
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let u = (u0 - lo) / (self.cdf[k] - lo);
+        (&self.emitters[k], u.clamp(0.0, ONE_MINUS_EPSILON))
     }
 
-    /// A point on an emitter: `pick` chooses the emitter by power, `u`
-    /// places the point on it, uniformly by area. `None` when the scene
-    /// has no emitter.
+    /// A point on an emitter: `u[0]` chooses the emitter by power (and is
+    /// reused, [`pick`](Self::pick)), `u` places the point on it, uniformly
+    /// by area. `None` when the scene has no emitter.
     #[inline]
-    pub fn sample(&self, pick: f32, u: [f32; 2]) -> Option<LightPoint<f32>> {
+    pub fn sample(&self, u: [f32; 2]) -> Option<LightPoint<f32>> {
         if self.is_empty() {
             return None;
         }
-        Some(LightPoint::on(self.pick(pick), u))
+        let (emitter, u0) = self.pick(u[0]);
+        Some(LightPoint::on(emitter, [u0, u[1]]))
     }
 
     /// The density per unit area with which [`Lights::sample`] picks a
@@ -270,19 +308,23 @@ mod tests {
             assert!((p - area(e) / total_area).abs() < 1e-6, "{p}");
             assert_eq!(e.pdf_area, lights.pdf_area(lights.triangle[k]));
         }
-        // Picks follow the running sums of the powers.
-        assert!(std::ptr::eq(lights.pick(0.0), &lights.emitters[0]));
-        assert!(std::ptr::eq(lights.pick(0.49), &lights.emitters[0]));
-        assert!(std::ptr::eq(lights.pick(0.51), &lights.emitters[1]));
-        assert!(std::ptr::eq(lights.pick(0.999_999_9), &lights.emitters[1]));
+        // Picks follow the running sums of the powers, and stretch the
+        // number back over the emitter's share.
+        let pick = |u: f32| {
+            let (e, u) = lights.pick(u);
+            (std::ptr::eq(e, &lights.emitters[0]), u)
+        };
+        assert_eq!(pick(0.0), (true, 0.0));
+        assert_eq!(pick(0.25), (true, 0.5));
+        assert_eq!(pick(0.75), (false, 0.5));
+        let (first, u) = pick(0.999_999_9);
+        assert!(!first && u < 1.0 && u > 0.999_99);
         // Non-emitters have density 0; samples lie on the light's plane.
         assert_eq!(lights.pdf_area(0), 0.0);
         let y = scene.triangles[lights.triangle[0] as usize].v[0].y;
         let mut rng = PathRng::new(4, 4, 4);
         for _ in 0..1000 {
-            let s = lights
-                .sample(rng.next_f32(), [rng.next_f32(), rng.next_f32()])
-                .unwrap();
+            let s = lights.sample([rng.next_f32(), rng.next_f32()]).unwrap();
             assert!((s.point.y - y).abs() < 1e-6);
             assert_eq!([s.emission.x, s.emission.y, s.emission.z], [10.0; 3]);
         }
@@ -291,7 +333,7 @@ mod tests {
         dark.materials
             .iter_mut()
             .for_each(|m| m.emission = glam::Vec3::ZERO);
-        assert!(Lights::new(&dark).sample(0.5, [0.5, 0.5]).is_none());
+        assert!(Lights::new(&dark).sample([0.5, 0.5]).is_none());
     }
 
     #[test]
@@ -299,12 +341,13 @@ mod tests {
         let lights = Lights::new(&Scene::cornell());
         let mut rng = PathRng::new(8, 8, 8);
         for _ in 0..1000 {
-            let picks: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
             let u: [[f32; 2]; 8] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
-            let e = Emitter::lanes(picks.map(|p| lights.pick(p)));
-            let p8 = LightPoint::on(&e, [0, 1].map(|c| f32x8::from(u.map(|u| u[c]))));
+            let picked = u.map(|u| lights.pick(u[0]));
+            let e = Emitter::lanes(picked.map(|p| p.0));
+            let u0 = f32x8::from(picked.map(|p| p.1));
+            let p8 = LightPoint::on(&e, [u0, f32x8::from(u.map(|u| u[1]))]);
             for l in 0..8 {
-                let p = lights.sample(picks[l], u[l]).unwrap();
+                let p = lights.sample(u[l]).unwrap();
                 let lane = |v: f32x8| v.to_array()[l].to_bits();
                 assert_eq!(
                     [p.point.x, p.point.y, p.point.z].map(f32::to_bits),

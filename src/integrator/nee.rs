@@ -55,7 +55,8 @@ impl Estimator {
     //
     //   report: [direction 2]                                    2 dims
     //   bsdf:   [roulette, lobe, direction 2]                    4 dims
-    //   nee:    [roulette, emitter, point 2, lobe, -, direction 2] 8 dims
+    //   nee:    [roulette, -, emitter and point 2, lobe, -, direction 2]
+    //                                                             8 dims
     //
     // A slot whose number is not needed (no roulette at this depth, the
     // unused one) is skipped, not drawn elsewhere.
@@ -80,23 +81,22 @@ impl Estimator {
         }
     }
 
-    /// The vertex's light-sampling numbers: an emitter, a point on it.
+    /// The vertex's light-sampling numbers: an emitter and a point on it
+    /// ([`Lights::sample`]).
     #[inline]
-    pub fn light_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) -> (f32, [f32; 2]) {
-        let pick = sampler.next(path);
-        (pick, sampler.next_2d(path))
+    pub fn light_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) -> [f32; 2] {
+        sampler.skip(path, 1);
+        sampler.next_2d(path)
     }
 
     /// [`light_numbers`](Self::light_numbers) of up to eight paths, one per
     /// lane.
     #[inline]
-    pub fn light_numbers_8<S: Sampler>(
-        &self,
-        sampler: &S,
-        paths: &mut [S::Path],
-    ) -> (f32x8, [f32x8; 2]) {
-        let pick = sampler.next_8(paths);
-        (pick, sampler.next_2d_8(paths))
+    pub fn light_numbers_8<S: Sampler>(&self, sampler: &S, paths: &mut [S::Path]) -> [f32x8; 2] {
+        for p in paths.iter_mut() {
+            sampler.skip(p, 1);
+        }
+        sampler.next_2d_8(paths)
     }
 
     /// [`bsdf_numbers`](Self::bsdf_numbers) of up to eight paths, one per

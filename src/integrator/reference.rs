@@ -183,8 +183,8 @@ impl ReferenceTracer {
             beta /= survival;
         }
         if est.samples_lights() {
-            let (pick, u) = est.light_numbers(sampler, path);
-            if let Some(light) = self.lights.sample(pick, u) {
+            let u = est.light_numbers(sampler, path);
+            if let Some(light) = self.lights.sample(u) {
                 let (valid, shadow) =
                     connect(&light, self.epsilon, V3::from(p), normal, V3::from(brdf));
                 if valid {

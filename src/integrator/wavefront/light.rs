@@ -27,15 +27,15 @@ pub fn sample_lights<S: Sampler>(
         let lanes = (n - i).min(8);
         // Each lane's emitter and point on it; lanes past the last path
         // get no emitter (never valid).
-        let (pick, u) = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
-        let pick = pick.to_array();
+        let [u0, u1] = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
+        let mut u0 = u0.to_array();
         let mut emitters = [&Emitter::NONE; 8];
         let mut tris = [queue.hit[i] as usize; 8];
         for l in 0..lanes {
-            emitters[l] = lights.pick(pick[l]);
+            (emitters[l], u0[l]) = lights.pick(u0[l]);
             tris[l] = queue.hit[i + l] as usize;
         }
-        let light = LightPoint::on(&Emitter::lanes(emitters), u);
+        let light = LightPoint::on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
         let gather = |cols: &[Vec<f32>; 3]| -> Vec3x8 {
             let g = |c: &Vec<f32>| f32x8::from(tris.map(|t| c[t]));
             V3::new(g(&cols[0]), g(&cols[1]), g(&cols[2]))
@@ -54,22 +54,25 @@ pub fn sample_lights<S: Sampler>(
             gather(&tables.brdf),
         );
         let valid = valid.to_bitmask();
-        for l in 0..lanes {
-            if valid & (1 << l) != 0 {
-                shadows.push((i + l) as u32, lane_of(&ray, l));
+        if valid != 0 {
+            let a = |v: f32x8| v.to_array();
+            let v3 = |v: &Vec3x8| [a(v.x), a(v.y), a(v.z)];
+            let (o, dir, r, t) = (
+                v3(&ray.origin),
+                v3(&ray.dir),
+                v3(&ray.radiance),
+                a(ray.t_max),
+            );
+            for l in (0..lanes).filter(|l| valid & (1 << l) != 0) {
+                let lane = |v: &[[f32; 8]; 3]| V3::new(v[0][l], v[1][l], v[2][l]);
+                let ray = ShadowRay {
+                    origin: lane(&o),
+                    dir: lane(&dir),
+                    t_max: t[l],
+                    radiance: lane(&r),
+                };
+                shadows.push((i + l) as u32, ray);
             }
         }
-    }
-}
-
-/// Lane `l` of eight shadow rays.
-#[inline(always)]
-fn lane_of(r: &ShadowRay<f32x8>, l: usize) -> ShadowRay<f32> {
-    let v = |v: &Vec3x8| V3::new(v.x.to_array()[l], v.y.to_array()[l], v.z.to_array()[l]);
-    ShadowRay {
-        origin: v(&r.origin),
-        dir: v(&r.dir),
-        t_max: r.t_max.to_array()[l],
-        radiance: v(&r.radiance),
     }
 }
