@@ -346,8 +346,8 @@ mod tests {
             let e = Emitter::lanes(picked.map(|p| p.0));
             let u0 = f32x8::from(picked.map(|p| p.1));
             let p8 = LightPoint::on(&e, [u0, f32x8::from(u.map(|u| u[1]))]);
-            for l in 0..8 {
-                let p = lights.sample(u[l]).unwrap();
+            for (l, &u) in u.iter().enumerate() {
+                let p = lights.sample(u).unwrap();
                 let lane = |v: f32x8| v.to_array()[l].to_bits();
                 assert_eq!(
                     [p.point.x, p.point.y, p.point.z].map(f32::to_bits),
