@@ -81,17 +81,11 @@ pub struct BuildParams {
 impl BuildParams {
     /// The parameters used for `lanes`-wide packs.
     pub fn for_lanes(lanes: usize) -> Self {
-        let env = |k: &str, d: f32| {
-            std::env::var(k)
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(d)
-        };
         Self {
             lanes,
-            max_leaf_packs: env("WT_MAXPACKS", super::MAX_LEAF_PACKS as f32) as usize,
-            cost_node: env("WT_CNODE", 1.0),
-            cost_pack: env("WT_CPACK", 1.5),
+            max_leaf_packs: super::MAX_LEAF_PACKS,
+            cost_node: 1.0,
+            cost_pack: 1.5,
         }
     }
 
@@ -429,11 +423,7 @@ fn build_node(
     depth: u32,
     params: &BuildParams,
 ) -> BuildNode {
-    if depth == 0
-        && whole.len <= params.max_leaf()
-        && whole.kinds.count_ones() == 1
-        && std::env::var_os("WT_NOROOTLEAF").is_none()
-    {
+    if depth == 0 && whole.len <= params.max_leaf() && whole.kinds.count_ones() == 1 {
         // A scene that fits in one leaf is one, its prims in index order:
         // testing all its packs beats any node in front of them (measured
         // on the 32-triangle Cornell box: a node's test and the ray's set-up
@@ -565,18 +555,7 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
             .max(1e-30)
     };
     let pad = Vec3A::splat(extent * (1.0 / 32768.0));
-    let tree = if let Ok(g) = std::env::var("WT_GROUPS") {
-        let mut start = 0;
-        let mut kids = Vec::new();
-        for len in g.split(',').map(|x| x.parse::<usize>().unwrap()) {
-            let r = range_of(start, &prims[start..start + len]);
-            kids.push((r.b, BuildNode::Leaf { start, len }));
-            start += len;
-        }
-        Some(BuildNode::Inner(kids))
-    } else {
-        (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params))
-    };
+    let tree = (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params));
     let mut topo = Topology {
         nodes: Vec::new(),
         root: Child::EMPTY,

@@ -159,7 +159,11 @@ impl<R: Lanes> Packs<R> {
         // Each leaf fills its own run of packs, in parallel.
         let mut jobs = Vec::with_capacity(topo.leaves.len());
         let mut rest = triangles.as_mut_slice();
+        let mut first = 0;
         for leaf in topo.leaves.iter().filter(|l| l.kind == PrimKind::Triangle) {
+            // Leaves of a kind own consecutive runs of its packs, in order.
+            debug_assert_eq!(leaf.first_pack, first);
+            first += leaf.len.div_ceil(lanes);
             let (mine, r) = rest.split_at_mut(leaf.len.div_ceil(lanes));
             jobs.push((mine, &topo.prims[leaf.start..leaf.start + leaf.len]));
             rest = r;
@@ -493,37 +497,4 @@ fn many16<K: QueryKind>(
     out: impl FnMut(usize, K::Output),
 ) {
     walk::walk_many::<F32x16, K::Q<F32x16>>(bvh, n, ray, t_min, out)
-}
-
-impl Bvh {
-    /// TEMP: describe the tree.
-    #[doc(hidden)]
-    pub fn describe(&self) -> String {
-        let mut s = String::new();
-        fn rec(b: &Bvh, c: Child, depth: usize, s: &mut String) {
-            use std::fmt::Write;
-            if c == Child::EMPTY {
-                return;
-            }
-            if c.is_node() {
-                let _ = writeln!(s, "{:1$}node {2}", "", depth * 2, c.0);
-                for k in b.nodes[c.0 as usize].child {
-                    rec(b, k, depth + 1, s);
-                }
-            } else {
-                let (f, n) = c.packs();
-                let _ = writeln!(
-                    s,
-                    "{:1$}leaf kind {2} packs {3}..{4}",
-                    "",
-                    depth * 2,
-                    c.kind(),
-                    f,
-                    f + n
-                );
-            }
-        }
-        rec(self, self.root, 0, &mut s);
-        s
-    }
 }

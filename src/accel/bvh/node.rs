@@ -118,15 +118,13 @@ impl Node8 {
         let slab = |a: usize| {
             let near = self.planes[r.near[a] as usize];
             let far = self.planes[r.far[a] as usize];
-            (
-                near.mul_sub(r.inv[a], r.o_inv[a]),
-                far.mul_sub(r.inv[a], r.o_inv[a]),
-            )
+            let (inv, o_inv) = (f32x8::splat(r.inv[a]), f32x8::splat(r.o_inv[a]));
+            (near.mul_sub(inv, o_inv), far.mul_sub(inv, o_inv))
         };
         let (nx, fx) = slab(0);
         let (ny, fy) = slab(1);
         let (nz, fz) = slab(2);
-        let t_near = nx.fast_max(ny).fast_max(nz.fast_max(r.t_min));
+        let t_near = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::splat(r.t_min)));
         let t_far = fx.fast_min(fy).fast_min(fz.fast_min(f32x8::splat(t_max)));
         (t_near.simd_le(t_far).to_bitmask(), t_near)
     }
@@ -135,9 +133,9 @@ impl Node8 {
 /// A ray prepared for box tests.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct NodeRay {
-    t_min: f32x8,
-    inv: [f32x8; 3],
-    o_inv: [f32x8; 3],
+    t_min: f32,
+    inv: [f32; 3],
+    o_inv: [f32; 3],
     /// Per axis, which of a node's planes the ray meets first and last.
     near: [u8; 3],
     far: [u8; 3],
@@ -160,9 +158,9 @@ impl NodeRay {
         let near = |x: f32, a: u8| if x < 0.0 { a + 3 } else { a };
         let far = |x: f32, a: u8| if x < 0.0 { a } else { a + 3 };
         Self {
-            t_min: f32x8::splat(t_min),
-            inv: [inv.x, inv.y, inv.z].map(f32x8::splat),
-            o_inv: [o_inv.x, o_inv.y, o_inv.z].map(f32x8::splat),
+            t_min,
+            inv: inv.to_array(),
+            o_inv: o_inv.to_array(),
             near: [near(inv.x, 0), near(inv.y, 1), near(inv.z, 2)],
             far: [far(inv.x, 0), far(inv.y, 1), far(inv.z, 2)],
         }

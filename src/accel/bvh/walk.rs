@@ -10,6 +10,7 @@ use crate::accel::simd::Lanes;
 use crate::accel::triangle::{Hit, PackHits, TrianglePack};
 use crate::math::V3;
 use glam::Vec3;
+use std::marker::PhantomData;
 use std::mem::MaybeUninit;
 use wide::{f32x4, f32x8, i32x8};
 
@@ -30,21 +31,30 @@ pub const BATCH: usize = 16;
 #[repr(C, align(64))]
 pub(crate) struct Pack<T>(pub T);
 
-/// A ray prepared for pack tests: broadcast to every lane.
+/// A ray for pack tests (broadcast to every lane where a leaf is tested:
+/// cheaper than keeping the broadcasts in a walk's state).
 pub(crate) struct PackRay<R: Lanes> {
-    pub o: V3<R>,
-    pub d: V3<R>,
-    pub t_min: R,
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    lanes: PhantomData<R>,
 }
 
 impl<R: Lanes> PackRay<R> {
     #[inline(always)]
     fn new(o: Vec3, d: Vec3, t_min: f32) -> Self {
         Self {
-            o: V3::splat(o),
-            d: V3::splat(d),
-            t_min: R::splat(t_min),
+            o,
+            d,
+            t_min,
+            lanes: PhantomData,
         }
+    }
+
+    /// Origin, direction and `t_min` in every lane.
+    #[inline(always)]
+    pub fn wide(&self) -> (V3<R>, V3<R>, R) {
+        (V3::splat(self.o), V3::splat(self.d), R::splat(self.t_min))
     }
 }
 
@@ -119,17 +129,22 @@ impl<R: Lanes> Query<R> for Closest<R> {
         packs: &[Pack<TrianglePack<R>>],
         in_order: bool,
     ) -> bool {
+        let (o, d, t_min) = r.wide();
+        // The running best in registers (stored once, after the packs).
+        let mut best = self.best;
         if in_order {
             // The whole walk: no cull distance needed after it.
             for Pack(p) in packs {
-                p.intersect::<true>(&r.o, &r.d, r.t_min, &mut self.best);
+                p.intersect::<true>(&o, &d, t_min, &mut best);
             }
+            self.best = best;
             return false;
         }
         for Pack(p) in packs {
-            p.intersect::<false>(&r.o, &r.d, r.t_min, &mut self.best);
+            p.intersect::<false>(&o, &d, t_min, &mut best);
         }
-        self.cull = cull_bound(self.best.t.min_lane());
+        self.best = best;
+        self.cull = cull_bound(best.t.min_lane());
         false
     }
     #[inline(always)]
@@ -176,8 +191,9 @@ impl<R: Lanes> Query<R> for AnyHit<R> {
         packs: &[Pack<TrianglePack<R>>],
         _in_order: bool,
     ) -> bool {
+        let (o, d, t_min) = r.wide();
         for Pack(p) in packs {
-            if p.occludes(&r.o, &r.d, r.t_min, self.t_max) {
+            if p.occludes(&o, &d, t_min, self.t_max) {
                 self.hit = true;
                 return true;
             }
@@ -414,7 +430,7 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
 }
 
 /// Rays `0..n` through the tree: `ray(i)` gives ray `i`'s origin, direction
-/// and `t_max`; `out(i, answer)` takes its answer.
+/// and `t_max`; `out(i, answer)` takes its answer (in any order).
 ///
 /// On a tree bigger than the caches the rays go [`BATCH`] at a time,
 /// interleaved: each step of one ray prefetches the node or leaf it will
