@@ -1,7 +1,7 @@
 //! The build: a tree of 8-wide nodes over primitives of any kind, from
 //! their boxes alone.
 //!
-//! Top-down with the surface area heuristic over [`BINS`] bins per axis.
+//! Top-down with the surface area heuristic over 16 bins per axis.
 //! Each wide node is made by splitting its largest child (by surface area)
 //! until it has eight, or until the heuristic says a leaf is cheaper. A
 //! leaf's cost counts whole packs (`ceil(n / lanes)`), so the heuristic

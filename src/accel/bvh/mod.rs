@@ -52,7 +52,7 @@
 
 pub mod build;
 mod node;
-pub mod walk;
+mod walk;
 
 pub use build::{BuildParams, BuildPrim, PrimKind, SAH_DEPTH_LIMIT};
 pub use walk::{BATCH, WalkStats};

@@ -4,10 +4,13 @@ use super::World;
 use super::queue::{MISS, PathQueue};
 use glam::Vec3;
 
-/// Working memory of the intersect stage (none needed today: the
-/// hierarchy reads the queue's columns and writes its hits in place).
+/// Working memory of the intersect stage. None is needed today (the
+/// hierarchy reads the queue's columns and writes its hits in place); the
+/// type stays so the engine's per-thread scratch keeps its shape.
 #[derive(Debug, Default)]
-pub struct RayBatch;
+pub struct RayBatch {
+    _none: (),
+}
 
 /// Fill `queue.t` and `queue.hit` with each ray's closest hit
 /// (smallest `(t, triangle)`), through the hierarchy: 8 or 16 triangles at
