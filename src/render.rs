@@ -1,6 +1,7 @@
 //! Render settings and the driver that runs an engine over sample ranges.
 
-use crate::accel::bvh::Bvh;
+use crate::accel::bvh::{Bvh, BvhOptions};
+use crate::accel::simd::SimdWidth;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum};
 use crate::integrator::nee::Estimator;
@@ -76,6 +77,9 @@ pub struct RenderSettings {
     pub sampler: SamplerKind,
     /// Russian roulette may end paths from this depth on (`None`: never).
     pub rr_depth: Option<u32>,
+    /// Lanes of the intersection kernels (8, or 16 with AVX-512). Never
+    /// changes the image: both widths give the same hits bit for bit.
+    pub simd: SimdWidth,
 }
 
 /// The estimator a render uses unless the scene, a profile or a flag says
@@ -112,6 +116,7 @@ impl RenderSettings {
             integrator: scene.options.integrator.unwrap_or(DEFAULT_INTEGRATOR),
             sampler: scene.options.sampler.unwrap_or(DEFAULT_SAMPLER),
             rr_depth: scene.options.rr_depth,
+            simd: SimdWidth::detect(),
         }
     }
 
@@ -163,6 +168,13 @@ impl RenderSettings {
         }
         if self.rr_depth == Some(0) {
             return bad("--rr-depth must be at least 1 (camera rays are never ended)");
+        }
+        if !self.simd.is_available() {
+            return Err(Error::Settings(format!(
+                "{} lanes ({}) need AVX-512 F, VL, DQ and BW, which this CPU lacks; use 8",
+                self.simd.lanes(),
+                self.simd.name()
+            )));
         }
         if self.max_depth > MAX_DEPTH {
             return Err(Error::Settings(format!(
@@ -228,7 +240,11 @@ impl Renderer {
                 Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
             })?;
         // One hierarchy, built on the render's threads, shared by the engine.
-        let bvh = Arc::new(pool.install(|| Bvh::build(&crate::accel::scene_triangles(scene))));
+        let options = BvhOptions {
+            width: settings.simd,
+        };
+        let triangles = crate::accel::scene_triangles(scene);
+        let bvh = Arc::new(pool.install(|| Bvh::build_with(&triangles, &options)));
         let estimator = settings.estimator();
         let engine = match settings.engine {
             Engine::Reference => EngineState::Reference(

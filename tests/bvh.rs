@@ -1,10 +1,13 @@
 //! The BVH answers every closest-hit query exactly as brute force does:
-//! the same triangle and the same `t`, bit for bit.
+//! the same triangle and the same `t`, bit for bit, at every SIMD width
+//! the CPU runs (8 lanes, and 16 where it has AVX-512); and every
+//! occlusion query exactly as that closest hit would.
 
 use glam::Vec3;
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
-use wavetrace::accel::bvh::Bvh;
+use wavetrace::accel::bvh::{Bvh, BvhOptions};
+use wavetrace::accel::simd::SimdWidth;
 use wavetrace::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force};
 use wavetrace::scene::mesh::{cornell_box, geodesic_sphere, terrain};
 
@@ -49,8 +52,26 @@ impl Rand {
     }
 }
 
+/// The hierarchy over `tris` at every width this CPU runs.
+fn builds(tris: &[TriangleEdges]) -> Vec<Bvh> {
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .map(|width| Bvh::build_with(tris, &BvhOptions { width }))
+        .collect()
+}
+
 fn key(h: Option<Hit>) -> Option<(u32, u32)> {
     h.map(|h| (h.triangle, h.t.to_bits()))
+}
+
+/// The closest hit as every width finds it (they must agree).
+fn closest(bvhs: &[Bvh], o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<(u32, u32)> {
+    let k = key(bvhs[0].closest_hit(o, d, t_min, t_max));
+    for b in &bvhs[1..] {
+        assert_eq!(key(b.closest_hit(o, d, t_min, t_max)), k, "widths differ");
+    }
+    k
 }
 
 fn bounds(tris: &[TriangleEdges]) -> (Vec3, Vec3) {
@@ -69,22 +90,48 @@ fn bounds(tris: &[TriangleEdges]) -> (Vec3, Vec3) {
 
 /// Fire `rays` random rays (origins in the scene's box grown by 20%,
 /// directions uniform) plus `surface` rays that start on a random triangle
-/// and compare with brute force. Returns how many hit.
+/// and compare with brute force, at every width: closest hits one by one
+/// and batched, and occlusion (one by one and batched) with `t_max` at, just
+/// before and just after the closest hit and at random. Returns how many
+/// hit.
 fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usize {
-    let bvh = Bvh::build(tris);
+    let bvhs = builds(tris);
     let (lo, hi) = bounds(tris);
     let grow = (hi - lo) * 0.2 + Vec3::splat(1e-3);
     let eps = 1e-4 * lo.abs().max(hi.abs()).max_element().max(1.0);
     let mut r = Rand::new(seed);
     let mut hits = 0;
-    let mut one = |o: Vec3, d: Vec3, t_min: f32, t_max: f32| {
+    let mut shadow: Vec<(Vec3, Vec3, f32, f32, bool)> = Vec::new();
+    let mut one = |o: Vec3, d: Vec3, t_min: f32, t_max: f32, r: &mut Rand| {
         let want = closest_hit_brute_force(tris, o, d, t_min, t_max);
-        let got = bvh.closest_hit(o, d, t_min, t_max);
-        assert_eq!(
-            key(got),
-            key(want),
-            "ray o={o:?} d={d:?} t_min={t_min} t_max={t_max}: bvh {got:?}, brute force {want:?}"
-        );
+        for bvh in &bvhs {
+            let got = bvh.closest_hit(o, d, t_min, t_max);
+            assert_eq!(
+                key(got),
+                key(want),
+                "{:?}: ray o={o:?} d={d:?} t_min={t_min} t_max={t_max}: bvh {got:?}, brute force {want:?}",
+                bvh.simd_width()
+            );
+        }
+        // Segments ending at, just before and just after the closest hit,
+        // and at a random distance.
+        let open = closest_hit_brute_force(tris, o, d, t_min, f32::INFINITY);
+        let mut ends = vec![t_max, r.range(0.0, 2.0 * (hi - lo).length())];
+        if let Some(h) = open {
+            ends.extend([h.t, h.t.next_up(), h.t.next_down()]);
+        }
+        for end in ends {
+            let want = open.is_some_and(|h| h.t < end);
+            for bvh in &bvhs {
+                assert_eq!(
+                    bvh.occluded(o, d, t_min, end),
+                    want,
+                    "{:?}: occluded o={o:?} d={d:?} t_min={t_min} t_max={end}, closest {open:?}",
+                    bvh.simd_width()
+                );
+            }
+            shadow.push((o, d, t_min, end, want));
+        }
         hits += want.is_some() as usize;
     };
     for i in 0..rays {
@@ -96,18 +143,7 @@ fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usiz
             1 => (eps, r.range(0.0, (hi - lo).length())),
             _ => (eps, f32::INFINITY),
         };
-        one(o, d, t_min, t_max);
-    }
-    // The batch query gives each ray's answer too.
-    let mut r2 = Rand::new(seed ^ 0xba7c);
-    let batch: Vec<(Vec3, Vec3)> = (0..rays.min(3000))
-        .map(|_| (r2.point_in(lo - grow, hi + grow), r2.dir()))
-        .collect();
-    let mut out = vec![None; batch.len()];
-    bvh.closest_hits(&batch, eps, f32::INFINITY, &mut out);
-    for (&(o, d), got) in batch.iter().zip(&out) {
-        let want = closest_hit_brute_force(tris, o, d, eps, f32::INFINITY);
-        assert_eq!(key(*got), key(want), "batch ray o={o:?} d={d:?}");
+        one(o, d, t_min, t_max, &mut r);
     }
     for i in 0..surface {
         let t = &tris[r.below(tris.len())];
@@ -120,7 +156,30 @@ fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usiz
             continue;
         }
         let t_min = if i % 4 == 0 { 0.0 } else { eps };
-        one(o, r.dir(), t_min, f32::INFINITY);
+        one(o, r.dir(), t_min, f32::INFINITY, &mut r);
+    }
+    // The batch queries give each ray's answer too.
+    let mut r2 = Rand::new(seed ^ 0xba7c);
+    let batch: Vec<(Vec3, Vec3)> = (0..rays.min(3000))
+        .map(|_| (r2.point_in(lo - grow, hi + grow), r2.dir()))
+        .collect();
+    for bvh in &bvhs {
+        let mut out = vec![None; batch.len()];
+        bvh.closest_hits(&batch, eps, f32::INFINITY, &mut out);
+        for (&(o, d), got) in batch.iter().zip(&out) {
+            let want = closest_hit_brute_force(tris, o, d, eps, f32::INFINITY);
+            assert_eq!(key(*got), key(want), "batch ray o={o:?} d={d:?}");
+        }
+        for t_min in [0.0, eps] {
+            let seg: Vec<_> = shadow.iter().filter(|s| s.2 == t_min).collect();
+            let rays: Vec<(Vec3, Vec3)> = seg.iter().map(|s| (s.0, s.1)).collect();
+            let ends: Vec<f32> = seg.iter().map(|s| s.3).collect();
+            let mut out = vec![false; seg.len()];
+            bvh.occluded_batch(&rays, t_min, &ends, &mut out);
+            for (s, got) in seg.iter().zip(out) {
+                assert_eq!(got, s.4, "batch occluded {s:?}");
+            }
+        }
     }
     hits
 }
@@ -198,7 +257,7 @@ fn flat_zero_thickness_mesh() {
     ));
     let hits = check(&tris, 3000, 1000, 6);
     assert!(hits > 0);
-    let bvh = Bvh::build(&tris);
+    let bvh = builds(&tris);
     let mut r = Rand::new(66);
     for _ in 0..2000 {
         let o = r.point_in(Vec3::new(-2.0, 0.0, -2.0), Vec3::new(2.0, 0.0, 2.0));
@@ -207,7 +266,7 @@ fn flat_zero_thickness_mesh() {
         let d = d.normalize();
         for o in [o, o + Vec3::Y * 1e-3, o - Vec3::Y * 1e-7] {
             let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
-            assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+            assert_eq!(closest(&bvh, o, d, 1e-4, f32::INFINITY), key(want));
         }
     }
     // Axis-aligned rays straight down onto the plane, including onto
@@ -220,10 +279,7 @@ fn flat_zero_thickness_mesh() {
                 -1.2 + 0.2 * j as f32 / 4.0,
             );
             let want = closest_hit_brute_force(&tris, o, -Vec3::Y, 1e-4, f32::INFINITY);
-            assert_eq!(
-                key(bvh.closest_hit(o, -Vec3::Y, 1e-4, f32::INFINITY)),
-                key(want)
-            );
+            assert_eq!(closest(&bvh, o, -Vec3::Y, 1e-4, f32::INFINITY), key(want));
         }
     }
 }
@@ -276,12 +332,12 @@ fn many_triangles_sharing_one_point() {
     }
     check(&tris, 2000, 500, 8);
     // Rays aimed exactly at the shared point.
-    let bvh = Bvh::build(&tris);
+    let bvh = builds(&tris);
     for _ in 0..500 {
         let o = r.dir() * 2.0;
         let d = (-o).normalize();
         let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
-        assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+        assert_eq!(closest(&bvh, o, d, 1e-4, f32::INFINITY), key(want));
     }
 }
 
@@ -319,7 +375,7 @@ fn axis_aligned_rays_and_boxes() {
             ));
         }
     }
-    let bvh = Bvh::build(&tris);
+    let bvh = builds(&tris);
     for i in 0..=80 {
         for j in 0..=80 {
             let (x, y) = (i as f32 * 0.025, j as f32 * 0.025);
@@ -330,7 +386,7 @@ fn axis_aligned_rays_and_boxes() {
                 (Vec3::new(x, -1.0, y), Vec3::Y),
             ] {
                 let want = closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY);
-                assert_eq!(key(bvh.closest_hit(o, d, 1e-4, f32::INFINITY)), key(want));
+                assert_eq!(closest(&bvh, o, d, 1e-4, f32::INFINITY), key(want));
             }
         }
     }
@@ -339,17 +395,26 @@ fn axis_aligned_rays_and_boxes() {
 #[test]
 fn stats_are_sane() {
     let tris = edges(&geodesic_sphere(Vec3::ZERO, 1.0, 50_000));
-    let bvh = Bvh::build(&tris);
-    assert_eq!(bvh.triangle_count(), tris.len());
-    assert!(bvh.node_count() > 0);
-    assert!(bvh.pack_count() * 8 >= tris.len());
-    // A full pack is 52 bytes per triangle (v0, e1, e2, n and an index);
-    // packs mostly full and nodes shared: under 80 bytes per triangle.
-    assert!(bvh.bytes() < 80 * tris.len(), "{} bytes", bvh.bytes());
-    assert!(bvh.build_seconds() > 0.0);
+    for bvh in builds(&tris) {
+        let lanes = bvh.simd_width().lanes();
+        assert_eq!(bvh.triangle_count(), tris.len());
+        assert!(bvh.node_count() > 0);
+        assert!(bvh.pack_count() * lanes >= tris.len());
+        // A full pack is 52 bytes per triangle (v0, e1, e2, n and an
+        // index); packs mostly full and nodes shared: under 80 bytes per
+        // triangle at 8 lanes, 100 at 16.
+        let limit = if lanes == 8 { 80 } else { 100 };
+        assert!(
+            bvh.bytes() < limit * tris.len(),
+            "{lanes} lanes: {} bytes",
+            bvh.bytes()
+        );
+        assert!(bvh.build_seconds() > 0.0);
+    }
     // The Cornell box is one leaf: no inner node to walk.
     let cornell = edges(&cornell_box());
-    let b = Bvh::build(&cornell);
-    assert_eq!(b.node_count(), 0);
-    assert_eq!(b.pack_count(), 4);
+    for b in builds(&cornell) {
+        assert_eq!(b.node_count(), 0);
+        assert_eq!(b.pack_count(), 32 / b.simd_width().lanes());
+    }
 }

@@ -1,5 +1,6 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
+use crate::accel::simd::SimdWidth;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
@@ -64,6 +65,11 @@ pub struct RenderArgs {
     /// --integrator report.
     #[arg(long, value_name = "D")]
     pub rr_depth: Option<u32>,
+    /// Lanes of the intersection kernels: 8 (AVX2) or 16 (AVX-512, where
+    /// the CPU has it) [default: the widest this CPU runs, or the
+    /// environment variable WAVETRACE_SIMD]. Never changes the image.
+    #[arg(long, value_name = "LANES", value_parser = parse_simd)]
+    pub simd: Option<SimdWidth>,
     /// Paths per wavefront batch [default: 4096]. A tuning knob for
     /// benchmarks: it never changes the image.
     #[arg(long, value_name = "PATHS")]
@@ -123,6 +129,14 @@ fn named<T: Clone + Send + Sync + 'static>(
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(names)
         .map(move |name: String| from_name(&name).expect("one of the possible values"))
+}
+
+/// `8` or `16` lanes.
+fn parse_simd(text: &str) -> std::result::Result<SimdWidth, String> {
+    text.parse()
+        .ok()
+        .and_then(SimdWidth::from_lanes)
+        .ok_or_else(|| format!("{text:?}: the kernels run 8 or 16 lanes"))
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
@@ -251,6 +265,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
     settings.sampler = args.sampler.or(profile_sampler).unwrap_or(settings.sampler);
     settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
+    settings.simd = args.simd.unwrap_or(settings.simd);
     settings.validate()?;
     let work = args.farm.request().resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
@@ -549,6 +564,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         git_commit: crate::cli::stats::GIT_COMMIT,
         cpu_model: crate::cli::stats::cpu_model(),
         simd: crate::cli::stats::SIMD,
+        kernel_lanes: s.simd.lanes(),
         scene: job.scene.name.clone(),
         width: s.width,
         height: s.height,
@@ -620,7 +636,7 @@ fn describe(job: &Job) -> String {
         None => String::new(),
     };
     format!(
-        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine{resume} -> {}",
+        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine, {}-lane kernels{resume} -> {}",
         job.scene.name,
         s.width,
         s.height,
@@ -634,6 +650,7 @@ fn describe(job: &Job) -> String {
         s.seed,
         s.threads,
         s.engine.name(),
+        s.simd.lanes(),
         outputs(job)
     )
 }

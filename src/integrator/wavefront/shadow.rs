@@ -36,16 +36,25 @@ impl ShadowQueue {
 /// path's radiance gains throughput × the ray's radiance. Returns the
 /// number of rays traced.
 pub fn shadow<P>(queue: &mut PathQueue<P>, shadows: &ShadowQueue, bvh: &Bvh, epsilon: f32) -> u64 {
-    for (&row, ray) in shadows.row.iter().zip(&shadows.ray) {
-        let (origin, dir) = (ray.origin.into(), ray.dir.into());
-        if bvh.closest_hit(origin, dir, epsilon, ray.t_max).is_some() {
-            continue;
-        }
-        let i = row as usize;
-        let l = [ray.radiance.x, ray.radiance.y, ray.radiance.z];
-        for ((radiance, beta), l) in queue.radiance.iter_mut().zip(&queue.beta).zip(l) {
-            radiance[i] += beta[i] * l;
-        }
-    }
+    let (radiance, beta) = (&mut queue.radiance, &queue.beta);
+    bvh.occluded_with(
+        shadows.len(),
+        #[inline(always)]
+        |k| {
+            let ray = &shadows.ray[k];
+            (ray.origin.into(), ray.dir.into(), ray.t_max)
+        },
+        epsilon,
+        #[inline(always)]
+        |k, occluded| {
+            if occluded {
+                return;
+            }
+            let (i, l) = (shadows.row[k] as usize, shadows.ray[k].radiance);
+            for ((radiance, beta), l) in radiance.iter_mut().zip(beta).zip([l.x, l.y, l.z]) {
+                radiance[i] += beta[i] * l;
+            }
+        },
+    );
     shadows.len() as u64
 }
