@@ -88,7 +88,7 @@ pub const DEFAULT_INTEGRATOR: Integrator = Integrator::Nee;
 
 /// The sampler a render uses unless the scene, a profile or a flag says
 /// otherwise.
-pub const DEFAULT_SAMPLER: SamplerKind = SamplerKind::Independent;
+pub const DEFAULT_SAMPLER: SamplerKind = SamplerKind::Sobol;
 
 /// Default paths per wavefront batch: the queues stay in the L2 cache.
 pub const DEFAULT_BATCH_SIZE: usize = 4096;
@@ -453,7 +453,8 @@ mod tests {
         assert_ne!(h0, hash(&|s| s.max_depth += 1));
         assert_ne!(h0, hash(&|s| s.engine = Engine::Reference));
         assert_ne!(h0, hash(&|s| s.integrator = Integrator::Bsdf));
-        assert_ne!(h0, hash(&|s| s.sampler = SamplerKind::Sobol));
+        assert_ne!(h0, hash(&|s| s.sampler = SamplerKind::Independent));
+        assert_eq!(h0, hash(&|s| s.simd = crate::accel::simd::SimdWidth::W8));
         assert_ne!(h0, hash(&|s| s.rr_depth = Some(3)));
         // The report's estimator hashes as it did before integrators.
         let report = base.clone().report();

@@ -57,7 +57,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = named(Integrator::NAMES, Integrator::from_name))]
     pub integrator: Option<Integrator>,
     /// Where the numbers come from: independent (PCG streams) or sobol
-    /// (Owen-scrambled Sobol points).
+    /// (Owen-scrambled Sobol points) [default: sobol].
     #[arg(long, value_parser = named(SamplerKind::NAMES, SamplerKind::from_name))]
     pub sampler: Option<SamplerKind>,
     /// Russian roulette may end paths at vertices of this depth and deeper
