@@ -149,9 +149,16 @@ fn default_max_depth() -> Spanned<u32> {
 struct MaterialFile {
     #[serde(default)]
     model: Option<Spanned<String>>,
-    reflectance: Spanned<[f32; 3]>,
+    #[serde(default)]
+    reflectance: Option<Spanned<[f32; 3]>>,
     #[serde(default)]
     emission: Option<Spanned<[f32; 3]>>,
+    #[serde(default)]
+    ior: Option<Spanned<f32>>,
+    #[serde(default)]
+    transmittance: Option<Spanned<[f32; 3]>>,
+    #[serde(default)]
+    alpha: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -283,26 +290,6 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let mut index = BTreeMap::new();
     for (name, m) in &raw.materials {
         let m_ref = m.get_ref();
-        let field = format!("materials.{name}.reflectance");
-        let reflectance = vec(&m_ref.reflectance, &field)?;
-        if reflectance.min_element() < 0.0 || reflectance.max_element() > 1.0 {
-            return Err(at(
-                m_ref.reflectance.span(),
-                &field,
-                "each component must be in [0, 1]".into(),
-            ));
-        }
-        let emission = match &m_ref.emission {
-            None => Vec3::ZERO,
-            Some(e) => {
-                let field = format!("materials.{name}.emission");
-                let v = vec(e, &field)?;
-                if v.min_element() < 0.0 {
-                    return Err(at(e.span(), &field, "must not be negative".into()));
-                }
-                v
-            }
-        };
         let model = match &m_ref.model {
             None => Model::Diffuse,
             Some(model) => match Model::from_name(model.get_ref()) {
@@ -320,13 +307,98 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 }
             },
         };
-        index.insert(name.clone(), materials.len() as u32);
-        materials.push(Material {
-            name: name.clone(),
+        // A field the model does not read is refused, not ignored.
+        let unused =
+            |present: Option<std::ops::Range<usize>>, key: &str, models: &str| match present {
+                Some(span) => Err(at(
+                    span,
+                    &format!("materials.{name}.{key}"),
+                    format!("{} materials have no {key} (only {models})", model.name()),
+                )),
+                None => Ok(()),
+            };
+        let unit_color = |v: &Spanned<[f32; 3]>, key: &str| -> Result<Vec3, SceneError> {
+            let field = format!("materials.{name}.{key}");
+            let c = vec(v, &field)?;
+            if c.min_element() < 0.0 || c.max_element() > 1.0 {
+                return Err(at(
+                    v.span(),
+                    &field,
+                    "each component must be in [0, 1]".into(),
+                ));
+            }
+            Ok(c)
+        };
+        let reflectance = match (&m_ref.reflectance, model) {
+            (Some(r), Model::Glass) => {
+                unused(Some(r.span()), "reflectance", "diffuse, mirror and metal")?;
+                Vec3::ONE
+            }
+            (Some(r), _) => unit_color(r, "reflectance")?,
+            (None, Model::Glass) => Vec3::ONE,
+            (None, _) => {
+                return Err(at(
+                    m.span(),
+                    &format!("materials.{name}.reflectance"),
+                    format!("a {} material needs a reflectance", model.name()),
+                ));
+            }
+        };
+        let emission = match &m_ref.emission {
+            None => Vec3::ZERO,
+            Some(e) => {
+                let field = format!("materials.{name}.emission");
+                let v = vec(e, &field)?;
+                if v.min_element() < 0.0 {
+                    return Err(at(e.span(), &field, "must not be negative".into()));
+                }
+                v
+            }
+        };
+        let mut material = Material {
             model,
             reflectance,
             emission,
-        });
+            ..Material::diffuse(name, reflectance, emission)
+        };
+        if model == Model::Glass {
+            if let Some(ior) = &m_ref.ior {
+                let v = *ior.get_ref();
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(at(
+                        ior.span(),
+                        &format!("materials.{name}.ior"),
+                        "must be a positive, finite index of refraction (e.g. 1.5 for glass)"
+                            .into(),
+                    ));
+                }
+                material.ior = v;
+            }
+            if let Some(t) = &m_ref.transmittance {
+                material.transmittance = unit_color(t, "transmittance")?;
+            }
+        } else {
+            unused(m_ref.ior.as_ref().map(|v| v.span()), "ior", "glass")?;
+            let t = m_ref.transmittance.as_ref().map(|v| v.span());
+            unused(t, "transmittance", "glass")?;
+        }
+        if model == Model::Metal {
+            if let Some(alpha) = &m_ref.alpha {
+                let v = *alpha.get_ref();
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(at(
+                        alpha.span(),
+                        &format!("materials.{name}.alpha"),
+                        "must be a GGX roughness in [0, 1] (0: a mirror)".into(),
+                    ));
+                }
+                material.alpha = v;
+            }
+        } else {
+            unused(m_ref.alpha.as_ref().map(|v| v.span()), "alpha", "metal")?;
+        }
+        index.insert(name.clone(), materials.len() as u32);
+        materials.push(material);
     }
 
     // Geometry: triangles, then quads (each split into two triangles).

@@ -146,6 +146,12 @@ impl Scene {
             // from before models existed stay what they were.
             match m.model {
                 Model::Diffuse => {}
+                Model::Mirror => put(Vec3::new(1.0, 0.0, 0.0)),
+                Model::Glass => {
+                    put(Vec3::new(2.0, m.ior, 0.0));
+                    put(m.transmittance);
+                }
+                Model::Metal => put(Vec3::new(3.0, m.alpha, 0.0)),
             }
         }
         for t in &self.triangles {

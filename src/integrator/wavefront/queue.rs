@@ -115,6 +115,21 @@ impl<P: Copy> PathQueue<P> {
         self.hit[to] = self.hit[from];
     }
 
+    /// Exchange paths `a` and `b` (the intersect outputs too).
+    #[inline]
+    pub fn swap_rows(&mut self, a: usize, b: usize) {
+        self.pixel.swap(a, b);
+        self.sampler.swap(a, b);
+        for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
+            for col in cols.iter_mut() {
+                col.swap(a, b);
+            }
+        }
+        self.pdf.swap(a, b);
+        self.t.swap(a, b);
+        self.hit.swap(a, b);
+    }
+
     /// Drop the [`RETIRED`] rows. Each hole is filled with the last live
     /// row, so only retired rows cost a move; the order of the paths
     /// changes, which changes nothing else (each path has its own numbers,
