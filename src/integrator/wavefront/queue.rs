@@ -44,10 +44,13 @@ pub struct PathQueue<P> {
 }
 
 impl<P: bytemuck::Pod> PathQueue<P> {
-    /// An empty queue with room for `n` paths.
+    /// An empty queue with room for `n` paths (rounded up to whole groups
+    /// of 8). The float columns have 7 rows more, so that 8 rows can be
+    /// loaded from any row (the *sort* stage starts a model's rows
+    /// anywhere).
     pub fn with_capacity(n: usize) -> Self {
         let rows = n.div_ceil(8) * 8;
-        let col = || vec![0.0f32; rows];
+        let col = || vec![0.0f32; rows + 7];
         Self {
             len: 0,
             pixel: vec![0; rows],
