@@ -169,9 +169,10 @@ fn check_prims(tris: &[TriangleEdges], spheres: &[Sphere], n: usize, seed: u64) 
             lo = lo.min(s.center - s.radius);
             hi = hi.max(s.center + s.radius);
         }
-        let mut v = sphere_rays(spheres, lo, hi, n - n / 2, seed);
-        if !tris.is_empty() {
-            v.extend(rays(tris, n / 2, seed));
+        let half = if tris.is_empty() { 0 } else { n / 2 };
+        let mut v = sphere_rays(spheres, lo, hi, n - half, seed);
+        if half > 0 {
+            v.extend(rays(tris, half, seed));
         }
         v
     };
