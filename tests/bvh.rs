@@ -793,3 +793,50 @@ fn ties_across_kinds_go_to_the_lower_index() {
     }
     assert!(ties > 100, "{ties} ties");
 }
+
+#[test]
+fn ties_between_copies_in_different_leaves() {
+    // 300 copies of one sphere and 300 of one triangle through it: more
+    // than a leaf holds, so the copies spread over several leaves in no
+    // particular order, and a lane meets equal `t`s from different packs.
+    // Every hit must be the first copy (of the sphere or the triangle),
+    // whichever leaf the walk reaches first.
+    let tri = TriangleEdges::new(
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, -1.0),
+        Vec3::new(0.0, 0.0, 1.0),
+    );
+    let mut tris = soup(50, 29, 0.2);
+    let first_tri = tris.len() as u32;
+    tris.extend(std::iter::repeat_n(tri, 300));
+    let mut spheres = sphere_soup(50, 29, 0.01, 0.1);
+    let first_sphere = (tris.len() + spheres.len()) as u32;
+    spheres.extend(std::iter::repeat_n(
+        Sphere::new(Vec3::new(0.1, 0.3, -0.2), 0.4),
+        300,
+    ));
+    let bvhs = builds_prims(&tris, &spheres);
+    let mut r = Rand::new(29);
+    let (mut on_tri, mut on_sphere) = (0, 0);
+    for _ in 0..20_000 {
+        let o = r.point_in(Vec3::splat(-2.0), Vec3::splat(2.0));
+        let target = r.point_in(Vec3::new(-0.5, -0.2, -0.6), Vec3::new(0.6, 0.7, 0.3));
+        let d = (target - o).normalize();
+        let want = closest_hit_brute_force_prims(&tris, &spheres, o, d, 1e-4, f32::INFINITY);
+        for bvh in &bvhs {
+            let got = bvh.closest_hit(o, d, 1e-4, f32::INFINITY);
+            assert_eq!(
+                key(got),
+                key(want),
+                "{:?}: o={o:?} d={d:?}",
+                bvh.simd_width()
+            );
+        }
+        match want.map(|h| h.triangle) {
+            Some(i) if i == first_tri => on_tri += 1,
+            Some(i) if i == first_sphere => on_sphere += 1,
+            _ => {}
+        }
+    }
+    assert!(on_tri > 1000 && on_sphere > 1000, "{on_tri} {on_sphere}");
+}
