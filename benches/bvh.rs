@@ -36,6 +36,13 @@
 //! the 32-triangle Cornell box through brute force, `closest_hit_packs` and
 //! the BVH at each width. `WAVETRACE_BENCH_SUMMARY_ONLY=1` stops after the
 //! summary; `WAVETRACE_BENCH_SIZES=1000000` picks the sizes.
+//!
+//! Spheres: the Cornell box with 100 000 random analytic spheres (radii
+//! log-uniform in 0.002..0.02, in one hierarchy with the box's triangles,
+//! `Bvh::build_prims`), the `box` rays through it: build time and closest
+//! hit (single, batch) against occlusion (the same rays as shadow segments)
+//! at each width, in the summary and in the criterion group `spheres`.
+//! `WAVETRACE_BENCH_SPHERES=N` changes the count.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
@@ -49,6 +56,7 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 use wavetrace::accel::bvh::{Bvh, BvhOptions};
 use wavetrace::accel::simd::SimdWidth;
+use wavetrace::accel::sphere::Sphere;
 use wavetrace::accel::triangle::{
     Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
 };
@@ -87,6 +95,88 @@ fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
     tris.iter()
         .map(|v| TriangleEdges::from_edges(v[0], v[1] - v[0], v[2] - v[0]))
         .collect()
+}
+
+/// How many analytic spheres the sphere scene has.
+fn sphere_count() -> usize {
+    std::env::var("WAVETRACE_BENCH_SPHERES")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(100_000)
+}
+
+/// `n` random spheres inside the Cornell box (radii log-uniform in
+/// 0.002..0.02).
+fn random_spheres(n: usize) -> Vec<Sphere> {
+    let mut g = Pcg64Mcg::new(0x5f3e_7e5);
+    let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    (0..n)
+        .map(|_| {
+            let c = Vec3::new(f(), f(), f()) * 1.9 - Vec3::splat(0.95);
+            Sphere::new(c, 0.002 * 10f32.powf(f()))
+        })
+        .collect()
+}
+
+/// The sphere scene's hierarchy at each width this CPU runs.
+fn sphere_builds(tris: &[TriangleEdges], spheres: &[Sphere]) -> Vec<Bvh> {
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .map(|width| Bvh::build_prims(tris, spheres, &BvhOptions { width }))
+        .collect()
+}
+
+/// The sphere scene: build, closest hit and occlusion at each width.
+fn sphere_summary() {
+    let tris = edges(&cornell_box());
+    let spheres = random_spheres(sphere_count());
+    let rays = rays(false);
+    let m = |s: f64| RAYS as f64 / s / 1e6;
+    let mut out = vec![None; RAYS];
+    let mut occ = vec![false; RAYS];
+    eprintln!(
+        "\n{:>8} {:>5} {:>8} {:>6} | {:>7} {:>7} {:>7} {:>6}",
+        "spheres", "lanes", "build ms", "B/prim", "single", "batch", "occl", "on sph"
+    );
+    for bvh in sphere_builds(&tris, &spheres) {
+        let options = BvhOptions {
+            width: bvh.simd_width(),
+        };
+        let build = wall(3, || {
+            black_box(Bvh::build_prims(&tris, &spheres, &options));
+        });
+        let single = time(5, || {
+            black_box(trace(&bvh, &rays));
+        });
+        let batch = time(5, || {
+            black_box(trace_batch(&bvh, &rays, &mut out));
+        });
+        let on_spheres = out
+            .iter()
+            .flatten()
+            .filter(|h| h.triangle as usize >= tris.len())
+            .count();
+        let ends = segment_ends(&bvh, &rays);
+        let occl = time(5, || {
+            black_box(occlude_batch(&bvh, &rays, &ends, &mut occ));
+        });
+        eprintln!(
+            "{:>8} {:>5} {:>8.1} {:>6.1} | {:>7.2} {:>7.2} {:>7.2} {:>5.0}%",
+            spheres.len(),
+            lanes(&bvh),
+            build * 1e3,
+            bvh.bytes() as f64 / bvh.prim_count() as f64,
+            m(single),
+            m(batch),
+            m(occl),
+            100.0 * on_spheres as f64 / RAYS as f64
+        );
+    }
+    eprintln!(
+        "(the Cornell box's 32 triangles and the spheres in one hierarchy; the `box` rays; \
+         M rays per CPU-second of one thread; on sph: share of rays whose closest hit is a sphere)"
+    );
 }
 
 const SPHERE_CENTER: Vec3 = Vec3::new(0.33, 0.105, -0.39);
@@ -372,6 +462,7 @@ fn summary() {
 fn benches(c: &mut Criterion) {
     if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
         summary();
+        sphere_summary();
     }
     if std::env::var_os("WAVETRACE_BENCH_SUMMARY_ONLY").is_some() {
         return;
@@ -425,6 +516,33 @@ fn benches(c: &mut Criterion) {
         }
         g.finish();
     }
+
+    // Spheres: closest hit against occlusion on the same rays.
+    let tris = edges(&cornell_box());
+    let spheres = random_spheres(sphere_count());
+    let rays = rays(false);
+    let mut out = vec![None; RAYS];
+    let mut occ = vec![false; RAYS];
+    let mut g = c.benchmark_group("spheres");
+    g.throughput(Throughput::Elements(RAYS as u64));
+    g.sample_size(10);
+    g.warm_up_time(Duration::from_millis(500));
+    g.measurement_time(Duration::from_secs(2));
+    let n = label(spheres.len());
+    for bvh in sphere_builds(&tris, &spheres) {
+        let x = lanes(&bvh);
+        let ends = segment_ends(&bvh, &rays);
+        g.bench_function(BenchmarkId::new(format!("single-x{x}"), &n), |b| {
+            b.iter(|| trace(&bvh, &rays))
+        });
+        g.bench_function(BenchmarkId::new(format!("batch-x{x}"), &n), |b| {
+            b.iter(|| trace_batch(&bvh, &rays, &mut out))
+        });
+        g.bench_function(BenchmarkId::new(format!("occluded-x{x}"), &n), |b| {
+            b.iter(|| occlude_batch(&bvh, &rays, &ends, &mut occ))
+        });
+    }
+    g.finish();
 }
 
 criterion_group!(bvh_benches, benches);

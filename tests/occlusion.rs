@@ -4,7 +4,10 @@
 //!   closer than its end (`t_max` at the hit, one ulp either side of it, at
 //!   random, and infinite), one ray at a time and batched;
 //! - the 16-lane kernels (where the CPU has AVX-512) give the same closest
-//!   hits, bit for bit, and the same occlusion answers as the 8-lane ones.
+//!   hits, bit for bit, and the same occlusion answers as the 8-lane ones;
+//! - both again on scenes of triangles and analytic spheres together
+//!   (rays aimed into spheres, grazing them, starting inside them and on
+//!   their surfaces).
 //!
 //! The closest hit itself is checked against brute force in `tests/bvh.rs`.
 
@@ -13,6 +16,7 @@ use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use wavetrace::accel::bvh::{Bvh, BvhOptions};
 use wavetrace::accel::simd::SimdWidth;
+use wavetrace::accel::sphere::Sphere;
 use wavetrace::accel::triangle::{Hit, TriangleEdges};
 use wavetrace::scene::mesh::{cornell_box, geodesic_sphere, terrain};
 
@@ -101,25 +105,77 @@ fn rays(tris: &[TriangleEdges], n: usize, seed: u64) -> Vec<(Vec3, Vec3, f32)> {
         .collect()
 }
 
+/// `n` rays for `spheres` (within the box `lo..hi`): aimed inside one,
+/// grazing one (tangent distance `r (1 ± ε)`), starting inside one, and
+/// starting on one's surface; with their `t_min`.
+fn sphere_rays(
+    spheres: &[Sphere],
+    lo: Vec3,
+    hi: Vec3,
+    n: usize,
+    seed: u64,
+) -> Vec<(Vec3, Vec3, f32)> {
+    let grow = (hi - lo) * 0.2 + Vec3::splat(1e-3);
+    let eps = 1e-4 * lo.abs().max(hi.abs()).max_element().max(1.0);
+    let mut r = Rand::new(seed);
+    (0..n)
+        .map(|k| {
+            let s = &spheres[r.below(spheres.len())];
+            match k % 4 {
+                0 => {
+                    let o = r.point_in(lo - grow, hi + grow);
+                    let target = s.center + r.dir() * s.radius * 0.99 * r.f();
+                    (o, (target - o).normalize_or(Vec3::Z), eps)
+                }
+                1 => {
+                    let o = r.point_in(lo - grow, hi + grow);
+                    let e = (s.center - o).normalize_or(Vec3::X);
+                    let p = e.any_orthonormal_vector();
+                    let side = (p + e.cross(p) * (r.f() * 2.0 - 1.0)).normalize();
+                    let k = 10f32.powf(-9.0 + 7.0 * r.f()) * if r.f() < 0.5 { -1.0 } else { 1.0 };
+                    let target = s.center + side * s.radius * (1.0 + k);
+                    (o, (target - o).normalize_or(Vec3::Z), eps)
+                }
+                2 => (
+                    s.center + r.dir() * s.radius * 0.999 * r.f().cbrt(),
+                    r.dir(),
+                    eps,
+                ),
+                _ => (s.center + r.dir() * s.radius, r.dir(), [0.0, eps][k % 2]),
+            }
+        })
+        .collect()
+}
+
 /// Check occlusion against the closest hit, and 16 lanes against 8, for
 /// `n` rays; returns (occluded answers checked, how many were occluded).
 fn check(tris: &[TriangleEdges], n: usize, seed: u64) -> (usize, usize) {
-    let b8 = Bvh::build_with(
-        tris,
-        &BvhOptions {
-            width: SimdWidth::W8,
-        },
-    );
-    let b16 = SimdWidth::W16.is_available().then(|| {
-        Bvh::build_with(
-            tris,
-            &BvhOptions {
-                width: SimdWidth::W16,
-            },
-        )
-    });
+    check_prims(tris, &[], n, seed)
+}
+
+/// [`check`] over triangles and spheres (half the rays aimed at spheres,
+/// where there are any).
+fn check_prims(tris: &[TriangleEdges], spheres: &[Sphere], n: usize, seed: u64) -> (usize, usize) {
+    let build = |width| Bvh::build_prims(tris, spheres, &BvhOptions { width });
+    let b8 = build(SimdWidth::W8);
+    let b16 = SimdWidth::W16.is_available().then(|| build(SimdWidth::W16));
     let bvhs: Vec<&Bvh> = std::iter::once(&b8).chain(b16.as_ref()).collect();
-    let rays = rays(tris, n, seed);
+    let rays = if spheres.is_empty() {
+        rays(tris, n, seed)
+    } else {
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
+        for s in spheres {
+            lo = lo.min(s.center - s.radius);
+            hi = hi.max(s.center + s.radius);
+        }
+        let half = if tris.is_empty() { 0 } else { n / 2 };
+        let mut v = sphere_rays(spheres, lo, hi, n - half, seed);
+        if half > 0 {
+            v.extend(rays(tris, half, seed));
+        }
+        v
+    };
     let mut r = Rand::new(seed ^ 0x5eed);
     let mut segments = Vec::new();
     let (mut checked, mut occluded) = (0, 0);
@@ -207,6 +263,48 @@ fn occlusion_equals_closest_hit_on_a_million_rays() {
         .enumerate()
     {
         let (c, o) = check(tris, 220_000, i as u64);
+        total += c;
+        occluded += o;
+    }
+    assert!(total >= 1_000_000, "{total} rays");
+    assert!(
+        occluded > total / 5 && occluded < total * 4 / 5,
+        "both answers exercised: {occluded} of {total}"
+    );
+}
+
+#[test]
+fn occlusion_equals_closest_hit_on_mixed_scenes() {
+    let mut r = Rand::new(2);
+    let spheres = |n: usize, r: &mut Rand, lo: f32, hi: f32| -> Vec<Sphere> {
+        (0..n)
+            .map(|_| {
+                let c = r.point_in(Vec3::splat(-1.0), Vec3::splat(1.0));
+                Sphere::new(c, lo * (hi / lo).powf(r.f()))
+            })
+            .collect()
+    };
+    let cornell = edges(&cornell_box());
+    // The Cornell box with a few spheres, one duplicated.
+    let mut few = spheres(5, &mut r, 0.1, 0.4);
+    few.push(few[0]);
+    // 100k small spheres alone; 20k with a 50k-triangle mesh; 12 spheres
+    // alone (one leaf at 16 lanes).
+    let many = spheres(100_000, &mut r, 1e-3, 1e-2);
+    let mut mesh = cornell_box();
+    mesh.extend(geodesic_sphere(Vec3::new(0.33, 0.105, -0.39), 0.3, 50_000));
+    let mesh = edges(&mesh);
+    let some = spheres(20_000, &mut r, 1e-3, 3e-2);
+    let twelve = spheres(12, &mut r, 0.05, 0.5);
+    let scenes: [(&[TriangleEdges], &[Sphere]); 4] = [
+        (&cornell, &few),
+        (&[], &many),
+        (&mesh, &some),
+        (&[], &twelve),
+    ];
+    let (mut total, mut occluded) = (0, 0);
+    for (i, (tris, spheres)) in scenes.into_iter().enumerate() {
+        let (c, o) = check_prims(tris, spheres, 260_000, 10 + i as u64);
         total += c;
         occluded += o;
     }

@@ -6,8 +6,9 @@
 //!   closest hits and occlusion;
 //! - [`simd`]: the SIMD width of the kernels (8 lanes, or 16 where the CPU
 //!   has AVX-512), chosen at run time;
-//! - [`sphere`]: robust ray/sphere intersection, scalar and 8 spheres at
-//!   once (not yet in the hierarchy).
+//! - [`sphere`]: robust ray/sphere intersection, scalar and 8 or 16
+//!   spheres at once (the hierarchy's second primitive kind), and the
+//!   brute-force closest hit over triangles and spheres.
 
 pub mod bvh;
 pub mod simd;

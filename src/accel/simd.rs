@@ -116,6 +116,8 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     /// The smallest index among the lanes whose value is `t`
     /// (`i32::MAX` where none).
     fn min_index_at(self, t: f32, index: Self::Index) -> i32;
+    /// The lanes, in order (for tests and debugging).
+    fn to_vec(self) -> Vec<f32>;
 }
 
 impl Lanes for f32x8 {
@@ -161,6 +163,9 @@ impl Lanes for f32x8 {
     fn min_index_at(self, t: f32, index: i32x8) -> i32 {
         let at: i32x8 = bytemuck::cast(self.simd_eq(f32x8::splat(t)));
         at.select(index, i32x8::splat(i32::MAX)).reduce_min()
+    }
+    fn to_vec(self) -> Vec<f32> {
+        self.to_array().to_vec()
     }
 }
 
@@ -358,6 +363,12 @@ mod x16 {
                 let at = _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(self.0, _mm512_set1_ps(t));
                 _mm512_mask_reduce_min_epi32(at, index.0)
             }
+        }
+        #[inline(always)]
+        fn to_vec(self) -> Vec<f32> {
+            // SAFETY: `__m512` and `[f32; 16]` are the same 64 bytes; a
+            // reinterpretation needs no instruction.
+            unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }.to_vec()
         }
     }
 }

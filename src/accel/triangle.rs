@@ -102,10 +102,14 @@ impl From<&TriangleEdges> for V3Tri<f32> {
     }
 }
 
-/// The closest hit of one ray: triangle index and distance.
+/// The closest hit of one ray: primitive index and distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
-    /// Index of the triangle hit.
+    /// Index of the primitive hit: triangles first, then spheres. Triangle
+    /// `i` is `i`; in a hierarchy built with spheres
+    /// ([`Bvh::build_prims`](crate::accel::bvh::Bvh::build_prims)), sphere
+    /// `j` is `T + j` with `T` the number of triangles. (The name is from
+    /// when triangles were the only primitive.)
     pub triangle: u32,
     /// Distance along the (unit) ray direction.
     pub t: f32,

@@ -11,6 +11,16 @@
 //! kind's pack list. Triangles come in packs of 8 or 16 ([`SimdWidth`]):
 //! the very SoA packs and the very Möller–Trumbore kernel of
 //! [`closest_hit_packs`](crate::accel::triangle::closest_hit_packs).
+//! Analytic spheres ([`Sphere`]) come in packs of the same width
+//! ([`SpherePack`](crate::accel::sphere::SpherePack)), tested by the robust
+//! kernel [`intersect_sphere`](crate::accel::sphere::intersect_sphere).
+//!
+//! # Primitive indices
+//!
+//! [`Bvh::build_prims`] takes triangles and spheres; a hit names one
+//! primitive by one global index: triangle `i` is `i`, sphere `j` is
+//! `T + j` (`T` the number of triangles). [`Hit::triangle`] holds that
+//! index; with no spheres it is the triangle's own index, as ever.
 //!
 //! # Build
 //!
@@ -32,8 +42,9 @@
 //!
 //! # Exactness
 //!
-//! The closest hit is the lexicographic minimum of `(t, triangle index)`
-//! ([`crate::accel::triangle`]): a leaf's lanes keep their own minimum and
+//! The closest hit is the lexicographic minimum of `(t, primitive index)`
+//! ([`crate::accel::triangle`]), across kinds: a leaf's lanes keep their
+//! own minimum (the same lanes whatever the leaf's kind) and
 //! the answer is reduced at the end, so the order in which leaves are
 //! visited does not matter, nor the width of the packs (each lane does the
 //! same IEEE operations at either width). A child is skipped only when its
@@ -41,14 +52,21 @@
 //! lower index may be there). Boxes are padded by a small absolute margin
 //! (`2^-15` of the scene's largest coordinate) so that rounding in the box
 //! test or in Möller–Trumbore cannot cull a triangle that the kernel would
-//! report. The result is the same triangle and the same `t` bits as
-//! [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force),
-//! and a ray is occluded exactly when that closest hit is closer than the
-//! segment's end. (A ray that grazes a triangle almost in its plane gets a
+//! report, and a sphere's box (center ± radius) is likewise padded against
+//! the sphere kernel's rounding. The result is the same primitive and the
+//! same `t` bits as
+//! [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)
+//! (triangles only) or
+//! [`closest_hit_brute_force_prims`](crate::accel::sphere::closest_hit_brute_force_prims)
+//! (triangles and spheres), and a ray is occluded exactly when that closest
+//! hit is closer than the segment's end. (A ray that grazes a triangle almost in its plane gets a
 //! `t` whose rounding error grows as 1/sin of the angle; were that error
 //! ever larger than the padding and the culling slack, the two could
 //! differ. The tests fire millions of random rays, grazing ones included,
-//! without finding one.)
+//! without finding one. A ray grazing a sphere has a `t` off by up to
+//! `r·sqrt(2ε|o - c|/r)` near the tangent point, but that point lies well
+//! inside the sphere's box, at least `0.4 r` along the ray past where the
+//! ray enters it.)
 
 pub mod build;
 mod node;
@@ -59,6 +77,7 @@ pub use node::PrimKind;
 pub use walk::{BATCH, WalkStats};
 
 use crate::accel::simd::{Lanes, SimdWidth};
+use crate::accel::sphere::{Sphere, SpherePack};
 use crate::accel::triangle::{Hit, TriangleEdges, TrianglePack};
 use build::{Aabb, Prim};
 use glam::{Vec3, Vec3A};
@@ -81,8 +100,8 @@ const INTERLEAVE_BYTES: usize = 256 << 10;
 /// How to build a [`Bvh`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhOptions {
-    /// The lanes of the triangle packs (and of the kernels that test
-    /// them). A width the CPU lacks falls back to [`SimdWidth::W8`].
+    /// The lanes of the triangle and sphere packs (and of the kernels that
+    /// test them). A width the CPU lacks falls back to [`SimdWidth::W8`].
     pub width: SimdWidth,
 }
 
@@ -124,6 +143,41 @@ pub(crate) struct Packs<R: Lanes> {
     /// Triangles with a non-finite coordinate: kept out of the tree (they
     /// have no box) and tested against every ray, as brute force would.
     pub unbounded: Vec<Pack<TrianglePack<R>>>,
+    /// Sphere packs, leaf after leaf (lanes carry global indices).
+    pub spheres: Vec<Pack<SpherePack<R>>>,
+    /// Spheres with a non-finite center, radius or box: as `unbounded`.
+    pub unbounded_spheres: Vec<Pack<SpherePack<R>>>,
+}
+
+/// The packs of one kind's leaves: `topo`'s leaves of `kind`, each packed
+/// by `pack` from its run of prims, in parallel.
+fn pack_leaves<T: Copy + Send + Sync>(
+    topo: &build::Topology,
+    kind: PrimKind,
+    lanes: usize,
+    pack: impl Fn(&[Prim]) -> T + Sync,
+) -> Vec<T> {
+    let mut packs = vec![pack(&[]); topo.pack_counts[kind as usize]];
+    // Each leaf fills its own run of packs, in parallel.
+    let mut jobs = Vec::with_capacity(topo.leaves.len());
+    let mut rest = packs.as_mut_slice();
+    let mut first = 0;
+    for leaf in topo.leaves.iter().filter(|l| l.kind == kind) {
+        // Leaves of a kind own consecutive runs of its packs, in order.
+        debug_assert_eq!(leaf.first_pack, first);
+        first += leaf.len.div_ceil(lanes);
+        let (mine, r) = rest.split_at_mut(leaf.len.div_ceil(lanes));
+        jobs.push((mine, &topo.prims[leaf.start..leaf.start + leaf.len]));
+        rest = r;
+    }
+    jobs.into_par_iter()
+        .with_min_len(256)
+        .for_each(|(out, prims)| {
+            for (o, c) in out.iter_mut().zip(prims.chunks(lanes)) {
+                *o = pack(c);
+            }
+        });
+    packs
 }
 
 impl<R: Lanes> Packs<R> {
@@ -131,64 +185,68 @@ impl<R: Lanes> Packs<R> {
         Self {
             triangles: Vec::new(),
             unbounded: Vec::new(),
+            spheres: Vec::new(),
+            unbounded_spheres: Vec::new(),
         }
     }
 
     fn count(&self) -> usize {
-        self.triangles.len() + self.unbounded.len()
+        self.triangles.len()
+            + self.unbounded.len()
+            + self.spheres.len()
+            + self.unbounded_spheres.len()
     }
 
     fn bytes(&self) -> usize {
-        self.count() * size_of::<Pack<TrianglePack<R>>>()
+        (self.triangles.len() + self.unbounded.len()) * size_of::<Pack<TrianglePack<R>>>()
+            + (self.spheres.len() + self.unbounded_spheres.len()) * size_of::<Pack<SpherePack<R>>>()
     }
 
-    /// Pack `topo`'s triangle leaves and the unbounded triangles.
+    /// Pack `topo`'s leaves and the unbounded primitives. A sphere prim's
+    /// index is its index among the spheres; its lanes carry
+    /// `tris.len()` more.
     fn new(
         topo: &build::Topology,
         tris: &[TriangleEdges],
         unbounded: &[(u32, TriangleEdges)],
+        spheres: &[Sphere],
+        unbounded_spheres: &[(u32, Sphere)],
     ) -> Self {
         let lanes = R::LANES;
-        let pack = |prims: &[Prim]| {
+        let triangles = pack_leaves(topo, PrimKind::Triangle, lanes, |prims| {
             let lanes: Vec<(u32, TriangleEdges)> = prims
                 .iter()
                 .map(|p| (p.index, tris[p.index as usize]))
                 .collect();
             Pack(TrianglePack::pack(&lanes))
-        };
-        let mut triangles = vec![pack(&[]); topo.pack_counts[PrimKind::Triangle as usize]];
-        // Each leaf fills its own run of packs, in parallel.
-        let mut jobs = Vec::with_capacity(topo.leaves.len());
-        let mut rest = triangles.as_mut_slice();
-        let mut first = 0;
-        for leaf in topo.leaves.iter().filter(|l| l.kind == PrimKind::Triangle) {
-            // Leaves of a kind own consecutive runs of its packs, in order.
-            debug_assert_eq!(leaf.first_pack, first);
-            first += leaf.len.div_ceil(lanes);
-            let (mine, r) = rest.split_at_mut(leaf.len.div_ceil(lanes));
-            jobs.push((mine, &topo.prims[leaf.start..leaf.start + leaf.len]));
-            rest = r;
-        }
-        jobs.into_par_iter()
-            .with_min_len(256)
-            .for_each(|(out, prims)| {
-                for (o, c) in out.iter_mut().zip(prims.chunks(lanes)) {
-                    *o = pack(c);
-                }
-            });
+        });
+        let offset = tris.len() as u32;
+        let sphere_packs = pack_leaves(topo, PrimKind::Sphere, lanes, |prims| {
+            let lanes: Vec<(u32, Sphere)> = prims
+                .iter()
+                .map(|p| (offset + p.index, spheres[p.index as usize]))
+                .collect();
+            Pack(SpherePack::pack(&lanes))
+        });
         Self {
             triangles,
             unbounded: unbounded
                 .chunks(lanes)
                 .map(|c| Pack(TrianglePack::pack(c)))
                 .collect(),
+            spheres: sphere_packs,
+            unbounded_spheres: unbounded_spheres
+                .chunks(lanes)
+                .map(|c| Pack(SpherePack::pack(c)))
+                .collect(),
         }
     }
 }
 
-/// A bounding volume hierarchy over a triangle list, answering
-/// closest-hit queries exactly as brute force does, and occlusion queries
-/// exactly as that closest hit would.
+/// A bounding volume hierarchy over a triangle list and, optionally, a
+/// sphere list ([`Bvh::build_prims`]), answering closest-hit queries
+/// exactly as brute force does, and occlusion queries exactly as that
+/// closest hit would.
 #[derive(Clone, Debug)]
 pub struct Bvh {
     nodes: Vec<Node8>,
@@ -205,6 +263,7 @@ pub struct Bvh {
     /// unbounded: a walk tests them all, in order.
     in_order: bool,
     triangles: usize,
+    spheres: usize,
     build_seconds: f64,
 }
 
@@ -226,10 +285,22 @@ impl Bvh {
     ///
     /// With 2^29 or more triangles.
     pub fn build_with(tris: &[TriangleEdges], options: &BvhOptions) -> Bvh {
+        Self::build_prims(tris, &[], options)
+    }
+
+    /// Build the hierarchy over triangles and spheres together: triangle
+    /// `i` is reported as primitive index `i` in hits, sphere `j` as
+    /// `tris.len() + j`. With no spheres this is [`Bvh::build_with`]: the
+    /// same tree and the same hits. Uses the current rayon thread pool.
+    ///
+    /// # Panics
+    ///
+    /// With 2^29 or more primitives in all.
+    pub fn build_prims(tris: &[TriangleEdges], spheres: &[Sphere], options: &BvhOptions) -> Bvh {
         let started = Instant::now();
         assert!(
-            tris.len() < (1 << 29),
-            "a Bvh holds fewer than 2^29 triangles"
+            tris.len() + spheres.len() < (1 << 29),
+            "a Bvh holds fewer than 2^29 primitives"
         );
         let width = if options.width.is_available() {
             options.width
@@ -237,7 +308,7 @@ impl Bvh {
             SimdWidth::W8
         };
         let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
-        let prims: Vec<Prim> = tris
+        let mut prims: Vec<Prim> = tris
             .par_iter()
             .enumerate()
             .filter(|(_, t)| finite(t))
@@ -260,6 +331,26 @@ impl Bvh {
             .filter(|(_, t)| !finite(t))
             .map(|(i, t)| (i as u32, *t))
             .collect();
+        // Spheres after the triangles, indexed among the spheres (the packs
+        // add the triangles' count).
+        prims.par_extend(spheres.par_iter().enumerate().filter_map(|(j, s)| {
+            let (lo, hi) = s.bounds()?;
+            Some(Prim {
+                b: Aabb {
+                    lo: lo.into(),
+                    hi: hi.into(),
+                },
+                index: j as u32,
+                kind: PrimKind::Sphere as u8,
+            })
+        }));
+        let offset = tris.len() as u32;
+        let unbounded_spheres: Vec<(u32, Sphere)> = spheres
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.bounds().is_none())
+            .map(|(j, s)| (offset + j as u32, *s))
+            .collect();
         let topo = build::build(prims, &BuildParams::for_lanes(width.lanes()));
         let mut bvh = Bvh {
             nodes: Vec::new(),
@@ -271,16 +362,18 @@ impl Bvh {
             interleave: false,
             in_order: false,
             triangles: tris.len(),
+            spheres: spheres.len(),
             build_seconds: 0.0,
         };
+        let (u, s, us) = (&unbounded, spheres, &unbounded_spheres);
         match width {
-            SimdWidth::W8 => bvh.packs8 = Packs::new(&topo, tris, &unbounded),
+            SimdWidth::W8 => bvh.packs8 = Packs::new(&topo, tris, u, s, us),
             #[cfg(target_arch = "x86_64")]
-            SimdWidth::W16 => bvh.packs16 = Packs::new(&topo, tris, &unbounded),
+            SimdWidth::W16 => bvh.packs16 = Packs::new(&topo, tris, u, s, us),
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
-        bvh.in_order = !topo.root.is_node() && unbounded.is_empty();
+        bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
         bvh.build_seconds = started.elapsed().as_secs_f64();
@@ -321,9 +414,10 @@ impl Bvh {
     }
 
     /// The closest hit of the ray `o + t·d` with `t_min < t < t_max`: the
-    /// smallest `(t, triangle index)`, bit for bit what
-    /// [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)
-    /// returns.
+    /// smallest `(t, primitive index)`, bit for bit what
+    /// [`closest_hit_brute_force_prims`](crate::accel::sphere::closest_hit_brute_force_prims)
+    /// returns (with no spheres:
+    /// [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)).
     #[inline(never)]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
         self.one::<ClosestKind>(o, d, t_min, t_max)
@@ -331,7 +425,7 @@ impl Bvh {
 
     /// Whether anything lies on the segment `o + t·d`, `t_min < t < t_max`:
     /// exactly when [`Bvh::closest_hit`] would find a hit there. Stops at
-    /// the first triangle found (for shadow rays).
+    /// the first primitive found (for shadow rays).
     #[inline(never)]
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
         self.one::<AnyHitKind>(o, d, t_min, t_max)
@@ -449,12 +543,23 @@ impl Bvh {
         self.triangles
     }
 
+    /// Number of spheres the hierarchy was built over (their primitive
+    /// indices follow the triangles').
+    pub fn sphere_count(&self) -> usize {
+        self.spheres
+    }
+
+    /// Number of primitives, triangles and spheres.
+    pub fn prim_count(&self) -> usize {
+        self.triangles + self.spheres
+    }
+
     /// Number of inner (8-wide) nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
-    /// Number of triangle packs (of 8 or 16) in the leaves.
+    /// Number of packs (of 8 or 16; triangles and spheres) in the leaves.
     pub fn pack_count(&self) -> usize {
         match self.width {
             SimdWidth::W8 => self.packs8.count(),
@@ -465,7 +570,7 @@ impl Bvh {
         }
     }
 
-    /// Memory held by the nodes and the triangle packs, in bytes.
+    /// Memory held by the nodes and the packs, in bytes.
     pub fn bytes(&self) -> usize {
         #[cfg(target_arch = "x86_64")]
         let p16 = self.packs16.bytes();

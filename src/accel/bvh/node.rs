@@ -12,6 +12,10 @@ use wide::f32x8;
 pub enum PrimKind {
     /// Triangles, tested by Möller–Trumbore in packs of 8 or 16.
     Triangle = 0,
+    /// Analytic spheres, tested by the robust ray/sphere kernel
+    /// ([`intersect_sphere`](crate::accel::sphere::intersect_sphere)) in
+    /// packs of 8 or 16 (the width of the triangle packs).
+    Sphere = 1,
 }
 
 impl PrimKind {
@@ -23,6 +27,7 @@ impl PrimKind {
     pub fn from_u32(k: u32) -> Option<Self> {
         match k {
             0 => Some(PrimKind::Triangle),
+            1 => Some(PrimKind::Sphere),
             _ => None,
         }
     }

@@ -7,6 +7,7 @@
 use super::node::{Child, Node8, NodeRay};
 use super::{Bvh, LanesIn};
 use crate::accel::simd::Lanes;
+use crate::accel::sphere::SpherePack;
 use crate::accel::triangle::{Hit, PackHits, TrianglePack};
 use crate::math::V3;
 use glam::Vec3;
@@ -26,7 +27,8 @@ const STACK: usize = super::build::SAH_DEPTH_LIMIT as usize + 12;
 pub const BATCH: usize = 16;
 
 /// A leaf pack on its own cache lines (an 8-lane triangle pack is 416
-/// bytes, 6.5 lines: aligned to 64 it takes exactly seven, never eight).
+/// bytes, 6.5 lines: aligned to 64 it takes exactly seven, never eight; an
+/// 8-lane sphere pack is 160 bytes, three lines).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(crate) struct Pack<T>(pub T);
@@ -78,6 +80,8 @@ pub(crate) trait Query<R: Lanes> {
         packs: &[Pack<TrianglePack<R>>],
         in_order: bool,
     ) -> bool;
+    /// Test a leaf of sphere packs; as [`Query::triangles`].
+    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool;
     /// The answer, once the walk is over.
     fn output(&self) -> Self::Output;
     /// Called at every inner node visited (for statistics).
@@ -148,6 +152,24 @@ impl<R: Lanes> Query<R> for Closest<R> {
         false
     }
     #[inline(always)]
+    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool {
+        let (o, d, t_min) = r.wide();
+        let mut best = self.best;
+        if in_order {
+            for Pack(p) in packs {
+                p.intersect::<true>(&o, &d, t_min, &mut best);
+            }
+            self.best = best;
+            return false;
+        }
+        for Pack(p) in packs {
+            p.intersect::<false>(&o, &d, t_min, &mut best);
+        }
+        self.best = best;
+        self.cull = cull_bound(best.t.min_lane());
+        false
+    }
+    #[inline(always)]
     fn output(&self) -> Option<Hit> {
         // `filter`: a lane left at t_max by a hit at exactly t_max.
         self.best.closest().filter(|h| h.t < self.t_max)
@@ -201,6 +223,17 @@ impl<R: Lanes> Query<R> for AnyHit<R> {
         false
     }
     #[inline(always)]
+    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], _in_order: bool) -> bool {
+        let (o, d, t_min) = r.wide();
+        for Pack(p) in packs {
+            if p.occludes(&o, &d, t_min, self.t_max) {
+                self.hit = true;
+                return true;
+            }
+        }
+        false
+    }
+    #[inline(always)]
     fn output(&self) -> bool {
         self.hit
     }
@@ -218,8 +251,10 @@ impl QueryKind for AnyHitKind {
 /// answers the query.
 #[inline(always)]
 fn start<R: LanesIn, Q: Query<R>>(bvh: &Bvh, r: &PackRay<R>, q: &mut Q) -> bool {
-    let unbounded = &R::packs(bvh).unbounded;
-    !unbounded.is_empty() && q.triangles(r, unbounded, false)
+    let packs = R::packs(bvh);
+    let (tris, spheres) = (&packs.unbounded, &packs.unbounded_spheres);
+    (!tris.is_empty() && q.triangles(r, tris, false))
+        || (!spheres.is_empty() && q.spheres(r, spheres, false))
 }
 
 /// Hand the leaf `leaf` to the query, by its kind; true ends the walk.
@@ -234,6 +269,7 @@ fn visit_leaf<R: LanesIn, Q: Query<R>>(
     let (first, count) = leaf.packs();
     match leaf.kind() {
         0 => q.triangles(r, &R::packs(bvh).triangles[first..first + count], in_order),
+        1 => q.spheres(r, &R::packs(bvh).spheres[first..first + count], in_order),
         _ => unreachable!("a leaf of an unknown kind"),
     }
 }
@@ -422,8 +458,13 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
             }
         } else if cur != Child::EMPTY {
             let (first, count) = cur.packs();
-            if let Some(p) = R::packs(bvh).triangles.get(first) {
-                prefetch_lines(p, count * size_of::<Pack<TrianglePack<R>>>() / 64);
+            let packs = R::packs(bvh);
+            if cur.kind() == 0 {
+                if let Some(p) = packs.triangles.get(first) {
+                    prefetch_lines(p, count * size_of::<Pack<TrianglePack<R>>>() / 64);
+                }
+            } else if let Some(p) = packs.spheres.get(first) {
+                prefetch_lines(p, count * size_of::<Pack<SpherePack<R>>>() / 64);
             }
         }
     }
@@ -588,6 +629,12 @@ impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
         self.stats.leaves += 1;
         self.stats.packs += packs.len() as u64;
         self.q.triangles(r, packs, in_order)
+    }
+    #[inline(always)]
+    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool {
+        self.stats.leaves += 1;
+        self.stats.packs += packs.len() as u64;
+        self.q.spheres(r, packs, in_order)
     }
     #[inline(always)]
     fn output(&self) -> Self::Output {
