@@ -251,7 +251,10 @@ fn plan(args: RenderArgs) -> Result<Job> {
     settings.sampler = args.sampler.or(profile_sampler).unwrap_or(settings.sampler);
     settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
+    settings.memory_limit = memory_limit_from_env(&env)?;
     settings.validate()?;
+    // Before anything of the render's size is allocated (and for --check).
+    settings.check_memory(scene.triangles.len())?;
     let work = args.farm.request().resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
     if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
@@ -400,6 +403,39 @@ fn plan(args: RenderArgs) -> Result<Job> {
         session,
         reference,
     })
+}
+
+/// `WAVETRACE_MAX_MEMORY`: the most memory a render may need, in bytes,
+/// or with a binary suffix (`512M`, `16G`, `1T`); unset: the system's.
+fn memory_limit_from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Option<u64>> {
+    let Some(text) = env("WAVETRACE_MAX_MEMORY") else {
+        return Ok(None);
+    };
+    let t = text.trim();
+    let (digits, shift) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let shift = match c.to_ascii_uppercase() {
+                'K' => 10,
+                'M' => 20,
+                'G' => 30,
+                'T' => 40,
+                _ => 64,
+            };
+            (&t[..i], shift)
+        }
+        _ => (t, 0),
+    };
+    digits
+        .parse::<u64>()
+        .ok()
+        .filter(|_| shift < 64)
+        .and_then(|n| n.checked_mul(1u64 << shift))
+        .map(Some)
+        .ok_or_else(|| {
+            Error::Settings(format!(
+                "environment variable WAVETRACE_MAX_MEMORY is {text:?}: expected a number of bytes, optionally with K, M, G or T"
+            ))
+        })
 }
 
 /// Refuse two outputs that name the same file: one would overwrite the
