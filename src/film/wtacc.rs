@@ -75,9 +75,18 @@ impl Film {
             path: path.to_path_buf(),
             message,
         };
+        let mut file = std::fs::File::open(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+        // Read whole (it is checked whole): refused if it cannot fit.
+        let size = file.metadata().map_or(0, |m| m.len());
+        if let Some(memory) = crate::fs::system_memory()
+            && size > memory / 2
+        {
+            return Err(bad(format!(
+                "{size} bytes: too large to load in this system's memory ({memory} bytes)"
+            )));
+        }
         let mut bytes = Vec::new();
-        std::fs::File::open(path)
-            .and_then(|mut f| f.read_to_end(&mut bytes))
+        file.read_to_end(&mut bytes)
             .map_err(|e| bad(format!("cannot read: {e}")))?;
         if bytes.len() < ACC_MAGIC.len() + 8 + 16 || &bytes[..8] != ACC_MAGIC {
             return Err(bad("not a wavetrace accumulation file".into()));

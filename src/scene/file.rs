@@ -158,6 +158,11 @@ struct GenerateFile {
 /// The most triangles one `[[generate]]` entry may ask for.
 pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
 
+/// The most triangles a scene may have, all entries together: checked
+/// before each mesh is added and each `[[generate]]` entry is made, so a
+/// file of many large entries is refused before it fills the memory.
+pub const MAX_SCENE_TRIANGLES: usize = 100_000_000;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraFile {
@@ -503,6 +508,17 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 message: format!("{} (the mesh of {what}, {file}:{line}:{column})", e.message),
             }
         })?;
+        if triangles.len() + obj.triangles.len() > MAX_SCENE_TRIANGLES {
+            return Err(at(
+                m.file.span(),
+                &what,
+                format!(
+                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this mesh, {} in it)",
+                    triangles.len(),
+                    obj.triangles.len()
+                ),
+            ));
+        }
         // The OBJ's materials become scene materials named "file:name".
         let mut mtl_index = Vec::new();
         for om in &obj.materials {
@@ -539,6 +555,16 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 g.triangles.span(),
                 &format!("{what}.triangles"),
                 format!("must be between 1 and {MAX_GENERATED_TRIANGLES}"),
+            ));
+        }
+        if triangles.len() as u64 + n > MAX_SCENE_TRIANGLES as u64 {
+            return Err(at(
+                g.triangles.span(),
+                &format!("{what}.triangles"),
+                format!(
+                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this entry)",
+                    triangles.len()
+                ),
             ));
         }
         let transform = transform(
