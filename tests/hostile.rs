@@ -517,3 +517,36 @@ fn forged_sums_and_shards_are_refused() {
     assert!(missing.missing_shards.len() <= wavetrace::run::merge::MAX_LISTED_SHARDS);
     assert!(t.elapsed() < Duration::from_secs(5));
 }
+
+// --- Beyond the list: a reference image with a forged size ---
+
+#[test]
+fn reference_exr_with_a_forged_size_is_refused_before_allocating() {
+    let dir = TempDir::new("exr");
+    let path = dir.join("ref.exr");
+    wavetrace::output::write_image(&path, 2, 2, &[[0.5; 3]; 4]).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    // dataWindow: box2i of xmin, ymin, xmax, ymax (i32 each).
+    let name = b"dataWindow\0box2i\0";
+    let at = bytes
+        .windows(name.len())
+        .position(|w| w == name)
+        .expect("a dataWindow attribute")
+        + name.len()
+        + 4;
+    for (k, v) in [(8, 99_999i32), (12, 99_999)] {
+        bytes[at + k..at + k + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let t = Instant::now();
+    let e = wavetrace::output::read_image(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("ref.exr"), "{e}");
+    assert!(t.elapsed() < Duration::from_secs(10));
+    let e = refused_cleanly(run(
+        &dir,
+        &[&TINY[..], &["--reference", "ref.exr", "--check"]].concat(),
+    ));
+    assert!(e.contains("ref.exr"), "{e}");
+}

@@ -230,7 +230,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let env = |name: &str| std::env::var(name).ok();
     settings.threads = match args.threads {
         Some(threads) => threads,
-        None => crate::run::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+        None => match crate::run::shard::threads_from_env(&env)? {
+            Some(n) if n > crate::render::MAX_THREADS => {
+                return Err(Error::Settings(format!(
+                    "environment variable SLURM_CPUS_PER_TASK is {n}: more than the {} worker threads a render may start; pass --threads N",
+                    crate::render::MAX_THREADS
+                )));
+            }
+            n => n.unwrap_or(settings.threads),
+        },
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     let named = |name: &Option<String>, what: &str, known: &[&str]| match name {

@@ -92,12 +92,6 @@ pub enum ShardError {
         /// What is wrong with its value.
         value: String,
     },
-    /// `SLURM_CPUS_PER_TASK` asks for more than [`crate::render::MAX_THREADS`].
-    #[error(
-        "environment variable SLURM_CPUS_PER_TASK is {0}: more than the {max} worker threads a render may start; pass --threads N",
-        max = crate::render::MAX_THREADS
-    )]
-    TooManyThreads(u32),
     /// A Slurm array whose task IDs are not `MIN..=MAX` in steps of 1.
     #[error(
         "--shard auto: the Slurm array's task IDs are not contiguous ({detail}); pass --shard-count N so that task IDs 0..N-1 are the shard indices"
@@ -231,9 +225,6 @@ pub fn threads_from_env(env: EnvLookup) -> Result<Option<usize>, ShardError> {
             name: "SLURM_CPUS_PER_TASK",
             value: "0".into(),
         }),
-        Ok(Some(n)) if n as usize > crate::render::MAX_THREADS => {
-            Err(ShardError::TooManyThreads(n))
-        }
         Ok(n) => Ok(n.map(|n| n as usize)),
         Err(ShardError::BadEnv { value, .. }) => Err(ShardError::BadEnv {
             name: "SLURM_CPUS_PER_TASK",
