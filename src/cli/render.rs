@@ -244,7 +244,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let env = |name: &str| std::env::var(name).ok();
     settings.threads = match args.threads {
         Some(threads) => threads,
-        None => crate::run::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+        None => match crate::run::shard::threads_from_env(&env)? {
+            Some(n) if n > crate::render::MAX_THREADS => {
+                return Err(Error::Settings(format!(
+                    "environment variable SLURM_CPUS_PER_TASK is {n}: more than the {} worker threads a render may start; pass --threads N",
+                    crate::render::MAX_THREADS
+                )));
+            }
+            n => n.unwrap_or(settings.threads),
+        },
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     let named = |name: &Option<String>, what: &str, known: &[&str]| match name {
@@ -266,7 +274,10 @@ fn plan(args: RenderArgs) -> Result<Job> {
     settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.simd = args.simd.unwrap_or(settings.simd);
+    settings.memory_limit = memory_limit_from_env(&env)?;
     settings.validate()?;
+    // Before anything of the render's size is allocated (and for --check).
+    settings.check_memory(scene.triangles.len())?;
     let work = args.farm.request().resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
     if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
@@ -415,6 +426,39 @@ fn plan(args: RenderArgs) -> Result<Job> {
         session,
         reference,
     })
+}
+
+/// `WAVETRACE_MAX_MEMORY`: the most memory a render may need, in bytes,
+/// or with a binary suffix (`512M`, `16G`, `1T`); unset: the system's.
+fn memory_limit_from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Option<u64>> {
+    let Some(text) = env("WAVETRACE_MAX_MEMORY") else {
+        return Ok(None);
+    };
+    let t = text.trim();
+    let (digits, shift) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let shift = match c.to_ascii_uppercase() {
+                'K' => 10,
+                'M' => 20,
+                'G' => 30,
+                'T' => 40,
+                _ => 64,
+            };
+            (&t[..i], shift)
+        }
+        _ => (t, 0),
+    };
+    digits
+        .parse::<u64>()
+        .ok()
+        .filter(|_| shift < 64)
+        .and_then(|n| n.checked_mul(1u64 << shift))
+        .map(Some)
+        .ok_or_else(|| {
+            Error::Settings(format!(
+                "environment variable WAVETRACE_MAX_MEMORY is {text:?}: expected a number of bytes, optionally with K, M, G or T"
+            ))
+        })
 }
 
 /// Refuse two outputs that name the same file: one would overwrite the
