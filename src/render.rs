@@ -373,8 +373,7 @@ impl Renderer {
         let options = BvhOptions {
             width: settings.simd,
         };
-        let triangles = crate::accel::scene_triangles(scene);
-        let bvh = Arc::new(pool.install(|| Bvh::build_with(&triangles, &options)));
+        let bvh = Arc::new(pool.install(|| crate::accel::scene_bvh(scene, &options)));
         let estimator = settings.estimator();
         let engine = match settings.engine {
             Engine::Reference => EngineState::Reference(

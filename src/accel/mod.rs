@@ -23,3 +23,18 @@ use triangle::TriangleEdges;
 pub fn scene_triangles(scene: &Scene) -> Vec<TriangleEdges> {
     scene.triangles.iter().map(TriangleEdges::from).collect()
 }
+
+/// The scene's spheres as the intersection kernels want them, in index
+/// order.
+pub fn scene_spheres(scene: &Scene) -> Vec<sphere::Sphere> {
+    let sphere = |s: &crate::scene::Sphere| sphere::Sphere {
+        center: s.center,
+        radius: s.radius,
+    };
+    scene.spheres.iter().map(sphere).collect()
+}
+
+/// The hierarchy over the scene's triangles and spheres.
+pub fn scene_bvh(scene: &Scene, options: &bvh::BvhOptions) -> bvh::Bvh {
+    bvh::Bvh::build_prims(&scene_triangles(scene), &scene_spheres(scene), options)
+}

@@ -15,34 +15,38 @@ use wide::f32x8;
 /// The scene's emitters, with what sampling them needs.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
-    /// Triangle index of each emitter.
+    /// Primitive index of each emitter (triangles, then spheres).
     triangle: Vec<u32>,
     /// Running sums of the emitters' powers, normalised to end at 1.
     cdf: Vec<f32>,
     /// Each emitter's geometry and radiance.
     emitters: Vec<Emitter>,
-    /// `P(emitter) / area` of each emitter, by *triangle* index (0 for
-    /// triangles that do not emit), so a hit can look it up.
+    /// `P(emitter) / area` of each emitter, by *primitive* index (0 for
+    /// primitives that do not emit), so a hit can look it up.
     pdf_area_of_triangle: Vec<f32>,
+    /// Whether some emitters are spheres.
+    has_spheres: bool,
 }
 
-/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, its
-/// radiance and its sampling density.
+/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle or a
+/// sphere, its radiance and its sampling density.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Emitter<R = f32> {
-    /// Vertex 0.
+    /// Vertex 0 (a sphere: its center).
     pub v0: V3<R>,
     /// `v1 - v0`.
     pub e1: V3<R>,
     /// `v2 - v0`.
     pub e2: V3<R>,
-    /// Front-side unit normal.
+    /// Front-side unit normal (a sphere: unused).
     pub normal: V3<R>,
     /// The radiance it emits towards its front.
     pub emission: V3<R>,
     /// The density of its points per unit area: `P(emitter) / area`.
     pub pdf_area: R,
+    /// 0 for a triangle; a sphere's radius.
+    pub radius: R,
 }
 
 /// The largest `f32` below 1.
@@ -57,7 +61,7 @@ const ZERO: V3<f32> = V3 {
 impl Emitter {
     /// The emitter's 16 floats, in field order.
     #[inline(always)]
-    fn floats(&self) -> [f32; 16] {
+    fn floats(&self) -> [f32; 17] {
         let v = |v: V3<f32>| [v.x, v.y, v.z];
         let [a, b, c, d, e] = [self.v0, self.e1, self.e2, self.normal, self.emission].map(v);
         [
@@ -77,6 +81,7 @@ impl Emitter {
             e[1],
             e[2],
             self.pdf_area,
+            self.radius,
         ]
     }
 
@@ -89,6 +94,7 @@ impl Emitter {
         normal: ZERO,
         emission: ZERO,
         pdf_area: 0.0,
+        radius: 0.0,
     };
 }
 
@@ -97,7 +103,7 @@ impl Emitter<f32x8> {
     #[inline(always)]
     pub fn lanes(e: [&Emitter; 8]) -> Self {
         // Transposed field by field: an emitter is 16 plain floats.
-        let mut cols = [[0.0f32; 8]; 16];
+        let mut cols = [[0.0f32; 8]; 17];
         for (l, e) in e.iter().enumerate() {
             for (col, x) in cols.iter_mut().zip(e.floats()) {
                 col[l] = x;
@@ -112,6 +118,7 @@ impl Emitter<f32x8> {
             normal: v3(9),
             emission: v3(12),
             pdf_area: c[15],
+            radius: c[16],
         }
     }
 }
@@ -135,6 +142,30 @@ impl<R: Real> LightPoint<R> {
     /// ([`square_to_triangle`]).
     #[inline(always)]
     pub fn on(e: &Emitter<R>, u: [R; 2]) -> Self {
+        Self::on_triangle(e, u)
+    }
+
+    /// The point [`LightPoint::on`] gives on a triangle emitter, or on a
+    /// sphere emitter (a lane whose `radius` is positive) a point uniform
+    /// on its surface by area: `z = 1 - 2 u0`, azimuth `2π u1`.
+    #[inline(always)]
+    pub fn on_any(e: &Emitter<R>, u: [R; 2]) -> Self {
+        let t = Self::on_triangle(e, u);
+        let one = R::splat(1.0);
+        let z = R::splat(-2.0).mul_add(u[0], one);
+        let r = (-z).mul_add(z, one).max(R::splat(0.0)).sqrt();
+        let (sin, cos) = crate::math::sin_cos_2pi(u[1]);
+        let dir = V3::new(r * cos, r * sin, z);
+        let sphere = R::splat(0.0).lt(e.radius);
+        Self {
+            point: V3::select(sphere, dir.mul_add(e.radius, e.v0), t.point),
+            normal: V3::select(sphere, dir, t.normal),
+            ..t
+        }
+    }
+
+    #[inline(always)]
+    fn on_triangle(e: &Emitter<R>, u: [R; 2]) -> Self {
         let [b1, b2] = square_to_triangle(u);
         Self {
             point: e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)),
@@ -150,7 +181,8 @@ impl Lights {
     /// whose area is not zero.
     pub fn new(scene: &Scene) -> Self {
         let mut lights = Lights {
-            pdf_area_of_triangle: vec![0.0; scene.triangles.len()],
+            pdf_area_of_triangle: vec![0.0; scene.triangles.len() + scene.spheres.len()],
+            has_spheres: false,
             ..Lights::default()
         };
         let mut powers = Vec::new();
@@ -171,9 +203,32 @@ impl Lights {
                 normal: t.normal.into(),
                 emission: emission.into(),
                 pdf_area: 0.0,
+                radius: 0.0,
             });
             powers.push(power as f64);
             areas.push(area as f64);
+        }
+        let first_sphere = scene.triangles.len();
+        for (k, sphere) in scene.spheres.iter().enumerate() {
+            let emission = scene.materials[sphere.material as usize].emission;
+            let area = 4.0 * std::f64::consts::PI * (sphere.radius as f64).powi(2);
+            let power = area * emission.element_sum() as f64 / 3.0;
+            if !(power > 0.0 && power.is_finite()) {
+                continue;
+            }
+            lights.has_spheres = true;
+            lights.triangle.push((first_sphere + k) as u32);
+            lights.emitters.push(Emitter {
+                v0: sphere.center.into(),
+                e1: ZERO,
+                e2: ZERO,
+                normal: ZERO,
+                emission: emission.into(),
+                pdf_area: 0.0,
+                radius: sphere.radius,
+            });
+            powers.push(power);
+            areas.push(area);
         }
         let total: f64 = powers.iter().sum();
         let mut sum = 0.0;
@@ -228,11 +283,24 @@ impl Lights {
             return None;
         }
         let (emitter, u0) = self.pick(u[0]);
-        Some(LightPoint::on(emitter, [u0, u[1]]))
+        Some(self.point_on(emitter, [u0, u[1]]))
+    }
+
+    /// The point on `emitter` (one lane or eight) for the numbers `u`:
+    /// [`LightPoint::on`], or [`LightPoint::on_any`] where the scene has
+    /// emissive spheres.
+    #[inline(always)]
+    pub fn point_on<R: Real>(&self, emitter: &Emitter<R>, u: [R; 2]) -> LightPoint<R> {
+        if self.has_spheres {
+            LightPoint::on_any(emitter, u)
+        } else {
+            LightPoint::on(emitter, u)
+        }
     }
 
     /// The density per unit area with which [`Lights::sample`] picks a
-    /// point on triangle `triangle` (0 for a triangle that does not emit).
+    /// point on primitive `triangle` (triangles, then spheres; 0 for one
+    /// that does not emit).
     #[inline]
     pub fn pdf_area(&self, triangle: u32) -> f32 {
         self.pdf_area_of_triangle[triangle as usize]

@@ -24,7 +24,8 @@
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
 use crate::accel::bvh::Bvh;
-use crate::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
+use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims, hit_normal};
+use crate::accel::triangle::{Hit, TriangleEdges, hit_point};
 use crate::film::accumulate;
 use crate::integrator::bsdf::{Surface, facing};
 use crate::integrator::lights::Lights;
@@ -40,8 +41,8 @@ use std::sync::Arc;
 
 /// How the tracer finds closest hits.
 enum Accel {
-    /// Every triangle, scalar, in index order.
-    BruteForce(Vec<TriangleEdges>),
+    /// Every triangle and sphere, scalar, in index order.
+    BruteForce(Vec<TriangleEdges>, Vec<Sphere>),
     /// The bounding volume hierarchy.
     Bvh(Arc<Bvh>),
 }
@@ -63,11 +64,11 @@ impl ReferenceTracer {
         Self::with_bvh(
             scene,
             max_depth,
-            Arc::new(Bvh::build(&crate::accel::scene_triangles(scene))),
+            Arc::new(crate::accel::scene_bvh(scene, &Default::default())),
         )
     }
 
-    /// A tracer over a [`Bvh`] already built from `crate::accel::scene_triangles(scene)`
+    /// A tracer over a [`Bvh`] already built from `crate::accel::scene_bvh(scene, ..)`
     /// (so engines can share one).
     pub fn with_bvh(scene: &Scene, max_depth: u32, bvh: Arc<Bvh>) -> Self {
         Self::with_accel(scene, max_depth, Accel::Bvh(bvh))
@@ -79,7 +80,10 @@ impl ReferenceTracer {
         Self::with_accel(
             scene,
             max_depth,
-            Accel::BruteForce(crate::accel::scene_triangles(scene)),
+            Accel::BruteForce(
+                crate::accel::scene_triangles(scene),
+                crate::accel::scene_spheres(scene),
+            ),
         )
     }
 
@@ -103,7 +107,7 @@ impl ReferenceTracer {
     pub fn bvh(&self) -> Option<&Arc<Bvh>> {
         match &self.accel {
             Accel::Bvh(b) => Some(b),
-            Accel::BruteForce(_) => None,
+            Accel::BruteForce(..) => None,
         }
     }
 
@@ -116,7 +120,24 @@ impl ReferenceTracer {
     fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         match &self.accel {
             Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, t_max),
-            Accel::BruteForce(e) => closest_hit_brute_force(e, o, d, self.epsilon, t_max),
+            Accel::BruteForce(t, s) => {
+                closest_hit_brute_force_prims(t, s, o, d, self.epsilon, t_max)
+            }
+        }
+    }
+
+    /// The material and the front (outward) unit normal of the primitive
+    /// hit by the ray `o + t·d`: a triangle's own normal, or a sphere's
+    /// radius through the hit ([`hit_normal`]).
+    fn hit_surface(&self, hit: Hit, o: Vec3, d: Vec3) -> (u32, Vec3) {
+        let prim = hit.triangle as usize;
+        match self.scene.triangles.get(prim) {
+            Some(t) => (t.material, t.normal),
+            None => {
+                let s = &self.scene.spheres[prim - self.scene.triangles.len()];
+                let n = hit_normal(V3::from(o), V3::from(d), hit.t, V3::from(s.center));
+                (s.material, Vec3::from(n))
+            }
         }
     }
 
@@ -168,13 +189,13 @@ impl ReferenceTracer {
         let Some(hit) = self.closest_hit(o, d) else {
             return Vec3::ZERO;
         };
-        let triangle = &self.scene.triangles[hit.triangle as usize];
-        let material = &self.scene.materials[triangle.material as usize];
+        let (material, front) = self.hit_surface(hit, o, d);
+        let material = &self.scene.materials[material as usize];
 
         // Seen from the front, the surface emits; either side reflects.
-        let (front, normal) = facing(V3::from(triangle.normal), V3::from(d));
-        let mut radiance = if front {
-            let cos_light = -triangle.normal.dot(d);
+        let (seen_from_front, normal) = facing(V3::from(front), V3::from(d));
+        let mut radiance = if seen_from_front {
+            let cos_light = -front.dot(d);
             let w = emission_weight(est, &self.lights, bsdf_pdf, hit.triangle, hit.t, cos_light);
             material.emission * w
         } else {
@@ -214,7 +235,7 @@ impl ReferenceTracer {
         }
         let (_lobe, u) = est.bsdf_numbers(sampler, path);
         let report = est.integrator == Integrator::Report;
-        let s = surface.sample(V3::from(triangle.normal), V3::from(d), u, report);
+        let s = surface.sample(V3::from(front), V3::from(d), u, report);
         // A delta direction has no density: light sampling could not have
         // found what it hits (MIS weight 1).
         let pdf = if s.delta { 0.0 } else { s.pdf };

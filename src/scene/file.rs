@@ -3,7 +3,7 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Triangle};
+use super::{Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
@@ -56,6 +56,8 @@ struct SceneFile {
     triangles: Vec<Spanned<TriangleFile>>,
     #[serde(default, rename = "quad")]
     quads: Vec<Spanned<QuadFile>>,
+    #[serde(default, rename = "sphere")]
+    spheres: Vec<Spanned<SphereFile>>,
     #[serde(default, rename = "mesh")]
     meshes: Vec<Spanned<MeshFile>>,
     #[serde(default, rename = "generate")]
@@ -216,6 +218,16 @@ struct MaterialFile {
     transmittance: Option<Spanned<Exact<[f32; 3]>>>,
     #[serde(default)]
     alpha: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    material: Spanned<String>,
+    center: Spanned<Exact<[f32; 3]>>,
+    radius: Spanned<f32>,
 }
 
 #[derive(Deserialize)]
@@ -727,7 +739,28 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         }
     }
 
-    if triangles.is_empty() {
+    let mut spheres = Vec::new();
+    for (i, sp) in raw.spheres.iter().enumerate() {
+        let what = format!("sphere[{i}]");
+        let sp = sp.get_ref();
+        let center = vec(&sp.center, &format!("{what}.center"))?;
+        let radius = *sp.radius.get_ref();
+        if !(radius.is_finite() && radius > 0.0) {
+            return Err(at(
+                sp.radius.span(),
+                &format!("{what}.radius"),
+                "must be a positive, finite number".into(),
+            ));
+        }
+        let material = material_named(&sp.material, &format!("{what}.material"))?;
+        spheres.push(Sphere {
+            center,
+            radius,
+            material,
+        });
+    }
+
+    if triangles.is_empty() && spheres.is_empty() {
         return Err(SceneError {
             mesh: None,
             file: file.to_string(),
@@ -735,7 +768,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             column: 0,
             field: None,
             message:
-                "the scene has no geometry (no [[triangle]], [[quad]], [[mesh]] or [[generate]])"
+                "the scene has no geometry (no [[triangle]], [[quad]], [[sphere]], [[mesh]] or [[generate]])"
                     .into(),
         });
     }
@@ -780,6 +813,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         camera,
         materials,
         triangles,
+        spheres,
         max_depth,
         options,
     })

@@ -63,6 +63,18 @@ pub struct Triangle {
     pub material: u32,
 }
 
+/// An analytic sphere with a material; its front (emitting) side is the
+/// outside.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    /// The center.
+    pub center: Vec3,
+    /// The radius (positive).
+    pub radius: f32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
 impl Triangle {
     /// A triangle whose front is the counter-clockwise side:
     /// `normal = normalize((v1 - v0) × (v2 - v0))`.
@@ -96,8 +108,11 @@ pub struct Scene {
     pub camera: Camera,
     /// Materials, referenced by index from the triangles.
     pub materials: Vec<Material>,
-    /// All geometry.
+    /// The triangles.
     pub triangles: Vec<Triangle>,
+    /// The analytic spheres. They follow the triangles in the primitive
+    /// numbering of hits: sphere `k` is primitive `triangles.len() + k`.
+    pub spheres: Vec<Sphere>,
     /// Default maximum path depth (the camera ray is depth 0).
     pub max_depth: u32,
     /// What the scene's `[integrator]` table asks for besides the depth.
@@ -126,10 +141,15 @@ impl Scene {
 
     /// The largest absolute coordinate of any vertex (at least 1).
     pub fn extent(&self) -> f32 {
+        let spheres = self
+            .spheres
+            .iter()
+            .map(|s| (s.center.abs() + s.radius).max_element());
         self.triangles
             .iter()
             .flat_map(|t| t.v)
             .map(|v| v.abs().max_element())
+            .chain(spheres)
             .fold(1.0, f32::max)
     }
 
@@ -179,6 +199,11 @@ impl Scene {
             }
             put(t.normal);
             put(Vec3::splat(t.material as f32));
+        }
+        // (Scenes without spheres hash as before spheres existed.)
+        for s in &self.spheres {
+            put(s.center);
+            put(Vec3::new(s.radius, s.material as f32, -1.0));
         }
         h.digest128()
     }

@@ -50,11 +50,6 @@ pub fn scatter<S: Sampler>(
         // borrow the first lane's triangle for the lookups.
         let tri = |l: usize| queue.hit[i + if l < lanes { l } else { 0 }] as usize;
         let tris: [usize; 8] = std::array::from_fn(tri);
-        let normal: Vec3x8 = V3::new(
-            gather8(&tables.normals[0], &tris),
-            gather8(&tables.normals[1], &tris),
-            gather8(&tables.normals[2], &tris),
-        );
         let surface = tables.surfaces(model, &tris);
         let (_lobe, u) = estimator.bsdf_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
         let load3 = |cols: &[Vec<f32>; 3]| {
@@ -64,6 +59,7 @@ pub fn scatter<S: Sampler>(
         let d = load3(&queue.d);
         let beta = load3(&queue.beta);
         let t = load8(&queue.t, i);
+        let normal = tables.front_normals(&tris, o, d, t);
 
         let origin = hit_point(o, d, t);
         let s = surface.sample(normal, d, u, report);
@@ -95,15 +91,6 @@ fn store_lanes(col: &mut [f32], i: usize, v: f32x8, lanes: usize) {
     } else {
         col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
     }
-}
-
-/// `[col[rows[0]], ..., col[rows[7]]]` as eight lanes.
-#[inline(always)]
-fn gather8(col: &[f32], rows: &[usize; 8]) -> f32x8 {
-    let r = rows;
-    f32x8::from([
-        col[r[0]], col[r[1]], col[r[2]], col[r[3]], col[r[4]], col[r[5]], col[r[6]], col[r[7]],
-    ])
 }
 
 #[cfg(test)]

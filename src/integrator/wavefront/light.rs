@@ -7,7 +7,7 @@ use super::shadow::ShadowQueue;
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::facing;
-use crate::integrator::lights::{Emitter, LightPoint, Lights};
+use crate::integrator::lights::{Emitter, Lights};
 use crate::integrator::nee::{Estimator, ShadowRay, connect};
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
@@ -67,16 +67,12 @@ fn sample_lights_8<S: Sampler>(
         (emitters[l], u0[l]) = lights.pick(u0[l]);
         tris[l] = queue.hit[i + l] as usize;
     }
-    let light = LightPoint::on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
-    let gather = |cols: &[Vec<f32>; 3]| -> Vec3x8 {
-        let g = |c: &Vec<f32>| f32x8::from(tris.map(|t| c[t]));
-        V3::new(g(&cols[0]), g(&cols[1]), g(&cols[2]))
-    };
+    let light = lights.point_on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
     let load3 =
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
-    let d = load3(&queue.d);
-    let p = hit_point(load3(&queue.o), d, load8(&queue.t, i));
-    let (_, n) = facing(gather(&tables.normals), d);
+    let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
+    let p = hit_point(o, d, t);
+    let (_, n) = facing(tables.front_normals(&tris, o, d, t), d);
     let surface = tables.surfaces(model, &tris);
     let (valid, ray) = connect(&light, f32x8::splat(tables.epsilon), (p, n, -d), &surface);
     let valid = valid.to_bitmask();

@@ -15,6 +15,7 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
     // Columns cut to the live rows: the loop below needs no bounds checks.
     let hit = &queue.hit[..n];
     let (t, pdf) = (&queue.t[..n], &queue.pdf[..n]);
+    let [ox, oy, oz] = queue.o.each_ref().map(|c| &c[..n]);
     let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
     let beta = queue.beta.each_ref().map(|c| &c[..n]);
     let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
@@ -28,12 +29,8 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
         if e == [0.0; 3] {
             continue;
         }
-        let normal = V3::new(
-            tables.normals[0][tri],
-            tables.normals[1][tri],
-            tables.normals[2][tri],
-        );
         let d = V3::new(dx[i], dy[i], dz[i]);
+        let normal = tables.front_normal(tri, V3::new(ox[i], oy[i], oz[i]), d, t[i]);
         if facing(normal, d).0 {
             let cos_light = -glam::Vec3::from(normal).dot(glam::Vec3::from(d));
             let w = emission_weight(estimator, lights, pdf[i], hit[i], t[i], cos_light);

@@ -1,23 +1,31 @@
-//! The scene as the stages read it: per-triangle and per-material columns,
-//! gathered 8 lanes at a time.
+//! The scene as the stages read it: per-primitive and per-material
+//! columns, gathered 8 lanes at a time. Primitives are numbered as hits
+//! number them: the triangles, then the spheres.
 
+use crate::accel::sphere::hit_normal;
 use crate::integrator::bsdf::Surface;
-use crate::math::V3;
-use crate::scene::{Material, Model, Scene, Triangle};
+use crate::math::{V3, Vec3x8};
+use crate::scene::{Material, Model, Scene};
 use std::f32::consts::PI;
 use wide::f32x8;
 
 /// Shading data, one column per field.
 pub struct Tables {
-    /// Front-side unit normal of each triangle: x, y, z columns.
+    /// Front-side unit normal of each triangle: x, y, z columns (spheres
+    /// have theirs computed at the hit: [`Tables::front_normal`]).
     pub normals: [Vec<f32>; 3],
-    /// Material index of each triangle.
+    /// Material index of each primitive.
     pub material_of: Vec<u32>,
+    /// Index of the first sphere among the primitives (the number of
+    /// triangles).
+    pub first_sphere: usize,
+    /// Center of each sphere.
+    pub sphere_center: Vec<V3<f32>>,
     /// Emitted radiance of each material.
     pub emission: Vec<[f32; 3]>,
     /// Scattering model of each material.
     pub model: Vec<Model>,
-    /// The diffuse BRDF `reflectance / π` of each triangle's material:
+    /// The diffuse BRDF `reflectance / π` of each primitive's material:
     /// R, G, B columns.
     pub brdf: [Vec<f32>; 3],
     /// Each material's colour as [`Surface::tint`] takes it, per RGB
@@ -34,7 +42,10 @@ pub struct Tables {
 impl Tables {
     /// The tables of `scene`.
     pub fn new(scene: &Scene) -> Self {
-        let brdf = |t: &Triangle| scene.materials[t.material as usize].reflectance / PI;
+        let materials: Vec<u32> = (scene.triangles.iter().map(|t| t.material))
+            .chain(scene.spheres.iter().map(|s| s.material))
+            .collect();
+        let brdf = |m: &u32| scene.materials[*m as usize].reflectance / PI;
         let tint = |m: &Material| match m.model {
             Model::Diffuse => m.reflectance / PI,
             Model::Mirror | Model::Metal => m.reflectance,
@@ -42,14 +53,16 @@ impl Tables {
         };
         Self {
             normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
-            material_of: scene.triangles.iter().map(|t| t.material).collect(),
+            first_sphere: scene.triangles.len(),
+            sphere_center: scene.spheres.iter().map(|s| V3::from(s.center)).collect(),
             emission: scene
                 .materials
                 .iter()
                 .map(|m| m.emission.to_array())
                 .collect(),
             model: scene.materials.iter().map(|m| m.model).collect(),
-            brdf: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| brdf(t)[c]).collect()),
+            brdf: [0, 1, 2].map(|c| materials.iter().map(|m| brdf(m)[c]).collect()),
+            material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
             alpha: scene.materials.iter().map(|m| m.alpha).collect(),
             ior: scene.materials.iter().map(|m| m.ior).collect(),
@@ -57,7 +70,47 @@ impl Tables {
         }
     }
 
-    /// The model of the material of triangle `tri`.
+    /// The front (outward) unit normal of primitive `prim` where the ray
+    /// `o + t·d` hits it: a triangle's own normal, or a sphere's radius
+    /// through the hit ([`hit_normal`], as the reference tracer has it).
+    #[inline(always)]
+    pub fn front_normal(&self, prim: usize, o: V3<f32>, d: V3<f32>, t: f32) -> V3<f32> {
+        match prim.checked_sub(self.first_sphere) {
+            None => V3::new(
+                self.normals[0][prim],
+                self.normals[1][prim],
+                self.normals[2][prim],
+            ),
+            Some(k) => hit_normal(o, d, t, self.sphere_center[k]),
+        }
+    }
+
+    /// [`front_normal`](Self::front_normal) of eight lanes (`prims` may
+    /// repeat a live lane's primitive in lanes past the live rows).
+    #[inline(always)]
+    pub fn front_normals(&self, prims: &[usize; 8], o: Vec3x8, d: Vec3x8, t: f32x8) -> Vec3x8 {
+        let gather =
+            |c: usize| f32x8::from(prims.map(|p| self.normals[c].get(p).copied().unwrap_or(0.0)));
+        let n = V3::new(gather(0), gather(1), gather(2));
+        if self.sphere_center.is_empty() {
+            return n;
+        }
+        let (o, d, t) = (lanes3(o), lanes3(d), t.to_array());
+        let mut cols = [n.x.to_array(), n.y.to_array(), n.z.to_array()];
+        for (l, &p) in prims.iter().enumerate() {
+            if p >= self.first_sphere {
+                let n = self.front_normal(p, o[l], d[l], t[l]);
+                (cols[0][l], cols[1][l], cols[2][l]) = (n.x, n.y, n.z);
+            }
+        }
+        V3::new(
+            f32x8::from(cols[0]),
+            f32x8::from(cols[1]),
+            f32x8::from(cols[2]),
+        )
+    }
+
+    /// The model of the material of primitive `tri`.
     #[inline(always)]
     pub fn model_of(&self, tri: u32) -> Model {
         self.model[self.material_of[tri as usize] as usize]
@@ -96,4 +149,11 @@ impl Tables {
         let first = *self.model.first()?;
         self.model.iter().all(|m| *m == first).then_some(first)
     }
+}
+
+/// Eight 3-vectors as eight scalar ones.
+#[inline(always)]
+fn lanes3(v: Vec3x8) -> [V3<f32>; 8] {
+    let (x, y, z) = (v.x.to_array(), v.y.to_array(), v.z.to_array());
+    std::array::from_fn(|l| V3::new(x[l], y[l], z[l]))
 }
