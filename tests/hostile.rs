@@ -550,3 +550,15 @@ fn reference_exr_with_a_forged_size_is_refused_before_allocating() {
     ));
     assert!(e.contains("ref.exr"), "{e}");
 }
+
+// --- Found by the fuzzer: an `mtllib` that names no file ---
+
+#[test]
+fn mtllib_without_a_file_is_refused_with_its_line() {
+    let dir = TempDir::new("mtllib");
+    let path = dir.join("m.obj");
+    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nmtllib   \nf 1 2 3\n").unwrap();
+    let e = obj::load(&path, true).unwrap_err();
+    assert_eq!((e.file.as_path(), e.line), (path.as_path(), 4), "{e}");
+    assert!(e.message.contains("mtllib"), "{e}");
+}

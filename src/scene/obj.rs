@@ -180,6 +180,9 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                 }
                 v += 1;
             }
+            Some("mtllib") if words.next().is_none() => {
+                return Err((line_no, "`mtllib` names no material file".into()));
+            }
             Some("vt") => vt += 1,
             Some("vn") => vn += 1,
             Some("f") => {
