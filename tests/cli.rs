@@ -464,3 +464,42 @@ fn both_kernel_widths_give_the_same_image() {
     let o = run(&dir, &["--simd", "12"]);
     assert!(!o.status.success() && stderr(&o).contains("8 or 16 lanes"));
 }
+
+/// The shipped converged reference (`scenes/refs/cornell-256-d3.exr`) is
+/// the built-in Cornell box at 256×256, depth 3: `--reference` measures a
+/// short render against it, the default's error is far below the report
+/// estimator's at the same samples, and a reference of another size is
+/// refused before the render starts.
+#[test]
+fn the_shipped_reference_measures_renders() {
+    let dir = TempDir::new("shipped-ref");
+    let reference = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/refs/cornell-256-d3.exr"
+    );
+    let relmse = |extra: &[&str]| {
+        let stats = dir.path().join("s.json");
+        let mut args = vec!["--spp", "4", "--reference", reference, "--out", "o.pfm"];
+        args.extend_from_slice(&["--stats", stats.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        run_ok(&dir, &args);
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        j["relmse"].as_f64().unwrap()
+    };
+    let default = relmse(&[]);
+    let report = relmse(&["--integrator", "report", "--sampler", "independent"]);
+    eprintln!("relMSE at 4 spp: default {default:.3e}, report {report:.3e}");
+    // About 0.03 and 5 (relMSE falls as 1/spp: 1.9e-3 and 0.31 at 64 spp).
+    assert!(default < 0.1, "default {default}");
+    assert!(
+        report > 10.0 * default,
+        "report {report}, default {default}"
+    );
+    let o = run(
+        &dir,
+        &["--spp", "4", "--width", "128", "--reference", reference],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("256"), "{}", stderr(&o));
+}
