@@ -108,7 +108,7 @@ fn sphere_count() -> usize {
 /// `n` random spheres inside the Cornell box (radii log-uniform in
 /// 0.002..0.02).
 fn random_spheres(n: usize) -> Vec<Sphere> {
-    let mut g = Pcg64Mcg::new(0x5f3e_7e5);
+    let mut g = Pcg64Mcg::new(0x05f3_e7e5);
     let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
     (0..n)
         .map(|_| {
