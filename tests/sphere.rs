@@ -121,15 +121,6 @@ fn make_case(rng: &mut Rng, kind: usize) -> Case {
     }
 }
 
-/// The tolerance model, from the kernel's rounding (`ε` = f32's epsilon,
-/// `f = o - c`): the discriminant `r² - |l|²` is off by about
-/// `2 r ε |f|`, i.e. the relative discriminant `δ` by `2 ε |f| / r`, and
-/// each root by `ε (|f| + r) / |d|` plus the square-root's amplification
-/// `1/sqrt(δ)` near grazing. So:
-///
-/// - hit/miss must agree except where `|δ| < 4 ε (|f| + r) / r` (grazing)
-///   or a root lies within the `t` tolerance of `t_min`;
-/// - `|t - t_ref| ≤ 8 ε (|f| + r) / |d| · max(1, 1/sqrt(δ))`.
 /// The widths of the hierarchy's sphere packs this CPU runs.
 fn widths() -> Vec<SimdWidth> {
     if !SimdWidth::W16.is_available() {
@@ -181,6 +172,15 @@ fn packed_equals_scalar(
     scalar
 }
 
+/// The tolerance model, from the kernel's rounding (`ε` = f32's epsilon,
+/// `f = o - c`): the discriminant `r² - |l|²` is off by about
+/// `2 r ε |f|`, i.e. the relative discriminant `δ` by `2 ε |f| / r`, and
+/// each root by `ε (|f| + r) / |d|` plus the square-root's amplification
+/// `1/sqrt(δ)` near grazing. So:
+///
+/// - hit/miss must agree except where `|δ| < 4 ε (|f| + r) / r` (grazing)
+///   or a root lies within the `t` tolerance of `t_min`;
+/// - `|t - t_ref| ≤ 8 ε (|f| + r) / |d| · max(1, 1/sqrt(δ))`.
 #[test]
 fn kernel_matches_f64_reference_on_a_million_rays() {
     let widths = widths();
