@@ -41,6 +41,22 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(0x8c, 0x56, 0x4b),
 ];
 
+/// A tick label: up to 3 significant digits, in plain notation between
+/// 0.001 and 100,000, else as `1e-5`.
+pub fn short(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || !(1e-3..1e5).contains(&a) {
+        return format!("{v:.0e}");
+    }
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    let t = format!("{v:.decimals$}");
+    if t.contains('.') {
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        t
+    }
+}
+
 /// Plot size in pixels (PNG) or user units (SVG).
 pub const PLOT_SIZE: (u32, u32) = (1100, 440);
 
@@ -104,8 +120,8 @@ fn draw<DB: DrawingBackend>(
             .y_desc(name)
             .label_style((FAMILY, 13))
             .axis_desc_style((FAMILY, 15))
-            .x_label_formatter(&|v| format!("{v:.3}"))
-            .y_label_formatter(&|v| format!("{v:.1e}"))
+            .x_label_formatter(&|v| short(*v))
+            .y_label_formatter(&|v| short(*v))
             .draw()
             .map_err(io)?;
         // The reference slope through the first curve's first point.
@@ -256,4 +272,19 @@ pub fn crop_strip_png(
 /// Write `bytes` to `path` atomically.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes)).map_err(|e: FileError| e.into())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn tick_labels() {
+        use super::short;
+        assert_eq!(short(1.0), "1");
+        assert_eq!(short(10.0), "10");
+        assert_eq!(short(1024.0), "1024");
+        assert_eq!(short(0.25), "0.25");
+        assert_eq!(short(0.1234), "0.123");
+        assert_eq!(short(0.001), "0.001");
+        assert_eq!(short(1e-5), "1e-5");
+    }
 }
