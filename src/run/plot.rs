@@ -118,6 +118,7 @@ fn draw<DB: DrawingBackend>(
                 XAxis::Seconds => "render seconds",
             })
             .y_desc(name)
+            .y_labels(6)
             .label_style((FAMILY, 13))
             .axis_desc_style((FAMILY, 15))
             .x_label_formatter(&|v| short(*v))
