@@ -8,7 +8,7 @@ use common::{TempDir, run_ok, stdout};
 use wavetrace::run::bench::{EXPECTED_HASHES, SuiteSize, render_workload, workloads};
 
 /// Every workload at every size renders the image whose hash is shipped
-/// (the full suite too: about 10 s on 2 cores). On failure, prints the
+/// (the full suite too: about 15 s on 2 cores). On failure, prints the
 /// table to paste into `EXPECTED_HASHES` (src/run/bench.rs).
 #[test]
 fn shipped_hashes_are_the_images_rendered() {
