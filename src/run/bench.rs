@@ -33,13 +33,13 @@ pub const SPHERE_1M_TOML: &str = include_str!("../../scenes/sphere-1m.toml");
 /// to paste here.
 pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
     ("cornell-report", SuiteSize::Full, "445d1ea5acbb8385"),
-    ("cornell-report", SuiteSize::Quick, "5ab3a60f882172ea"),
+    ("cornell-report", SuiteSize::Quick, "b0e7e03e999e9e68"),
     ("cornell-report", SuiteSize::Tiny, "f36c7125eb61d9e7"),
     ("cornell-default", SuiteSize::Full, "71fbdd97d09190a0"),
-    ("cornell-default", SuiteSize::Quick, "9cbdaec8359a559d"),
+    ("cornell-default", SuiteSize::Quick, "b361518d360b7a8c"),
     ("cornell-default", SuiteSize::Tiny, "be7a154e5431c104"),
     ("sphere-1m", SuiteSize::Full, "d5706c87ec31503d"),
-    ("sphere-1m", SuiteSize::Quick, "0397a49d7b320478"),
+    ("sphere-1m", SuiteSize::Quick, "4c33202db1994b10"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
 ];
 
@@ -149,7 +149,7 @@ pub fn workloads(size: SuiteSize) -> Vec<Workload> {
     // Samples per pixel of each workload: (report, default, sphere).
     let (res, spp) = match size {
         SuiteSize::Full => (256, [384, 288, 192]),
-        SuiteSize::Quick => (256, [32, 24, 16]),
+        SuiteSize::Quick => (256, [64, 48, 32]),
         SuiteSize::Tiny => (32, [4, 4, 2]),
     };
     let w = |name, description, scene, spp, integrator, sampler| Workload {
