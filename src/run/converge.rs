@@ -20,11 +20,11 @@ use std::time::Instant;
 /// ꟻLIP by less than this (absolute, on ꟻLIP's 0–1 scale) no longer pays.
 ///
 /// A convention, not a measured just-noticeable difference: 0.005 is half
-/// a percent of ꟻLIP's range. With Monte Carlo noise the mean ꟻLIP falls
-/// roughly as 1/√N at high sample counts, so a doubling removes about 29%
-/// of it: the threshold is reached near a mean ꟻLIP of 0.017, where the
-/// noise left is faint in the 8-bit image. A study with observers would
-/// calibrate it; `--jnd` sets another.
+/// a percent of ꟻLIP's range. With Monte Carlo noise a doubling of the
+/// samples removes about 20% of the mean ꟻLIP (measured on the Cornell
+/// box; 29% if it fell as 1/√N), so the threshold is reached near a mean
+/// ꟻLIP of 0.025, where the noise left is faint in the 8-bit image. A
+/// study with observers would calibrate it; `--jnd` sets another.
 pub const DEFAULT_JND: f64 = 0.005;
 
 /// One estimator setting of a study.
