@@ -1,5 +1,6 @@
-//! BVH benchmarks: build speed and memory, and incoherent closest-hit
-//! throughput against the same rays through the `obvhs` crate.
+//! BVH benchmarks: build speed and memory; incoherent closest-hit and
+//! occlusion throughput, at 8 and 16 lanes, against the same rays through
+//! the `obvhs` crate.
 //!
 //! The scene at each size is the DH2323 Cornell box (32 triangles) with a
 //! geodesic sphere of about N triangles on the short block — the geometry of
@@ -16,8 +17,11 @@
 //!
 //! Each set goes through `Bvh::closest_hit` one ray at a time (`single`),
 //! through `Bvh::closest_hits` (`batch`: 16 rays interleaved with prefetch),
-//! and through obvhs's compressed wide BVH (`slow_build` preset, its best
-//! quality) with its own triangle test.
+//! through `Bvh::occluded_batch` (`occl`: the same rays as shadow segments,
+//! ending at half or one and a half times the distance to their closest
+//! hit, so about half are occluded), at 8 lanes and, where the CPU has
+//! AVX-512, 16; and through obvhs's compressed wide BVH (`slow_build`
+//! preset, its best quality) with its own triangle test.
 //!
 //! ```sh
 //! cargo bench --bench bvh                         # 1k, 10k, 100k, 1M
@@ -25,11 +29,20 @@
 //! ```
 //!
 //! Before the criterion groups, a summary prints, per size: build time,
-//! M triangles/s, bytes/triangle, M rays/s for wavetrace and for obvhs, and
-//! their ratio (medians of several runs, rays timed in this thread's CPU
-//! time so that other processes on a shared machine do not count), and the
-//! 32-triangle Cornell box through brute force, `closest_hit_packs` and the
-//! BVH. `WAVETRACE_BENCH_SUMMARY_ONLY=1` stops after the summary.
+//! M triangles/s, bytes/triangle, M rays/s for wavetrace (each mode, each
+//! width) and for obvhs, and the ratio obvhs time / wavetrace's best
+//! closest-hit time (medians of several runs, rays timed in this thread's
+//! CPU time so that other processes on a shared machine do not count), and
+//! the 32-triangle Cornell box through brute force, `closest_hit_packs` and
+//! the BVH at each width. `WAVETRACE_BENCH_SUMMARY_ONLY=1` stops after the
+//! summary; `WAVETRACE_BENCH_SIZES=1000000` picks the sizes.
+//!
+//! Spheres: the Cornell box with 100 000 random analytic spheres (radii
+//! log-uniform in 0.002..0.02, in one hierarchy with the box's triangles,
+//! `Bvh::build_prims`), the `box` rays through it: build time and closest
+//! hit (single, batch) against occlusion (the same rays as shadow segments)
+//! at each width, in the summary and in the criterion group `spheres`.
+//! `WAVETRACE_BENCH_SPHERES=N` changes the count.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
@@ -41,7 +54,9 @@ use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
-use wavetrace::accel::bvh::Bvh;
+use wavetrace::accel::bvh::{Bvh, BvhOptions};
+use wavetrace::accel::simd::SimdWidth;
+use wavetrace::accel::sphere::Sphere;
 use wavetrace::accel::triangle::{
     Hit, Triangle8, TriangleEdges, closest_hit_brute_force, closest_hit_packs,
 };
@@ -51,6 +66,9 @@ const RAYS: usize = 1 << 16;
 const EPS: f32 = 1e-4;
 
 fn sizes() -> Vec<usize> {
+    if let Ok(v) = std::env::var("WAVETRACE_BENCH_SIZES") {
+        return v.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+    }
     let mut s = vec![1_000, 10_000, 100_000, 1_000_000];
     if std::env::var_os("WAVETRACE_BENCH_10M").is_some() {
         s.push(10_000_000);
@@ -77,6 +95,88 @@ fn edges(tris: &[[Vec3; 3]]) -> Vec<TriangleEdges> {
     tris.iter()
         .map(|v| TriangleEdges::from_edges(v[0], v[1] - v[0], v[2] - v[0]))
         .collect()
+}
+
+/// How many analytic spheres the sphere scene has.
+fn sphere_count() -> usize {
+    std::env::var("WAVETRACE_BENCH_SPHERES")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(100_000)
+}
+
+/// `n` random spheres inside the Cornell box (radii log-uniform in
+/// 0.002..0.02).
+fn random_spheres(n: usize) -> Vec<Sphere> {
+    let mut g = Pcg64Mcg::new(0x05f3_e7e5);
+    let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    (0..n)
+        .map(|_| {
+            let c = Vec3::new(f(), f(), f()) * 1.9 - Vec3::splat(0.95);
+            Sphere::new(c, 0.002 * 10f32.powf(f()))
+        })
+        .collect()
+}
+
+/// The sphere scene's hierarchy at each width this CPU runs.
+fn sphere_builds(tris: &[TriangleEdges], spheres: &[Sphere]) -> Vec<Bvh> {
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .map(|width| Bvh::build_prims(tris, spheres, &BvhOptions { width }))
+        .collect()
+}
+
+/// The sphere scene: build, closest hit and occlusion at each width.
+fn sphere_summary() {
+    let tris = edges(&cornell_box());
+    let spheres = random_spheres(sphere_count());
+    let rays = rays(false);
+    let m = |s: f64| RAYS as f64 / s / 1e6;
+    let mut out = vec![None; RAYS];
+    let mut occ = vec![false; RAYS];
+    eprintln!(
+        "\n{:>8} {:>5} {:>8} {:>6} | {:>7} {:>7} {:>7} {:>6}",
+        "spheres", "lanes", "build ms", "B/prim", "single", "batch", "occl", "on sph"
+    );
+    for bvh in sphere_builds(&tris, &spheres) {
+        let options = BvhOptions {
+            width: bvh.simd_width(),
+        };
+        let build = wall(3, || {
+            black_box(Bvh::build_prims(&tris, &spheres, &options));
+        });
+        let single = time(5, || {
+            black_box(trace(&bvh, &rays));
+        });
+        let batch = time(5, || {
+            black_box(trace_batch(&bvh, &rays, &mut out));
+        });
+        let on_spheres = out
+            .iter()
+            .flatten()
+            .filter(|h| h.triangle as usize >= tris.len())
+            .count();
+        let ends = segment_ends(&bvh, &rays);
+        let occl = time(5, || {
+            black_box(occlude_batch(&bvh, &rays, &ends, &mut occ));
+        });
+        eprintln!(
+            "{:>8} {:>5} {:>8.1} {:>6.1} | {:>7.2} {:>7.2} {:>7.2} {:>5.0}%",
+            spheres.len(),
+            lanes(&bvh),
+            build * 1e3,
+            bvh.bytes() as f64 / bvh.prim_count() as f64,
+            m(single),
+            m(batch),
+            m(occl),
+            100.0 * on_spheres as f64 / RAYS as f64
+        );
+    }
+    eprintln!(
+        "(the Cornell box's 32 triangles and the spheres in one hierarchy; the `box` rays; \
+         M rays per CPU-second of one thread; on sph: share of rays whose closest hit is a sphere)"
+    );
 }
 
 const SPHERE_CENTER: Vec3 = Vec3::new(0.33, 0.105, -0.39);
@@ -165,6 +265,36 @@ fn trace_batch(bvh: &Bvh, rays: &[(Vec3, Vec3)], out: &mut [Option<Hit>]) -> f64
     out.iter().flatten().map(|h| h.t as f64).sum()
 }
 
+/// Shadow segments on `rays`: each ends at half (even rays) or one and a
+/// half (odd rays) times the distance to its closest hit (at 10 when it
+/// hits nothing), so about half are occluded.
+fn segment_ends(bvh: &Bvh, rays: &[(Vec3, Vec3)]) -> Vec<f32> {
+    let mut hits = vec![None; rays.len()];
+    bvh.closest_hits(rays, EPS, f32::INFINITY, &mut hits);
+    hits.iter()
+        .enumerate()
+        .map(|(i, h)| h.map_or(10.0, |h| h.t * if i % 2 == 0 { 0.5 } else { 1.5 }))
+        .collect()
+}
+
+fn occlude_batch(bvh: &Bvh, rays: &[(Vec3, Vec3)], ends: &[f32], out: &mut [bool]) -> usize {
+    bvh.occluded_batch(rays, EPS, ends, out);
+    out.iter().filter(|&&b| b).count()
+}
+
+/// The hierarchy at each width this CPU runs.
+fn builds(tris: &[TriangleEdges]) -> Vec<Bvh> {
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .map(|width| Bvh::build_with(tris, &BvhOptions { width }))
+        .collect()
+}
+
+fn lanes(bvh: &Bvh) -> usize {
+    bvh.simd_width().lanes()
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -214,7 +344,6 @@ fn summary() {
     // The Cornell box alone: is the BVH ever slower than testing all packs?
     let e = edges(&cornell_box());
     let packs = Triangle8::pack_all(&e);
-    let bvh = Bvh::build(&e);
     let cornell_rays = rays(false);
     let brute = time(5, || {
         for &(o, d) in &cornell_rays {
@@ -226,22 +355,35 @@ fn summary() {
             black_box(closest_hit_packs(&packs, o, d, EPS, f32::INFINITY));
         }
     });
-    let bv = time(5, || {
-        black_box(trace(&bvh, &cornell_rays));
-    });
     let m = |s: f64| RAYS as f64 / s / 1e6;
-    eprintln!(
-        "cornell (32 tris, {} nodes): brute force {:.2}, packs {:.2}, bvh {:.2} M rays/s",
-        bvh.node_count(),
+    let mut line = format!(
+        "cornell (32 tris): brute force {:.2}, packs {:.2}",
         m(brute),
-        m(pk),
-        m(bv)
+        m(pk)
     );
-    let sets = [("box", rays(false)), ("aimed", rays(true))];
     let mut out = vec![None; RAYS];
+    for bvh in builds(&e) {
+        let batch = time(5, || {
+            black_box(trace_batch(&bvh, &cornell_rays, &mut out));
+        });
+        let ends = segment_ends(&bvh, &cornell_rays);
+        let mut occ = vec![false; RAYS];
+        let occl = time(5, || {
+            black_box(occlude_batch(&bvh, &cornell_rays, &ends, &mut occ));
+        });
+        line += &format!(
+            ", bvh x{} {:.2} (occluded {:.2})",
+            lanes(&bvh),
+            m(batch),
+            m(occl)
+        );
+    }
+    eprintln!("{line} M rays/s");
+    let sets = [("box", rays(false)), ("aimed", rays(true))];
     eprintln!(
-        "\n{:>5} {:>8} {:>8} {:>6} {:>7} | {:>5} {:>7} {:>7} {:>7} {:>6}",
+        "\n{:>5} {:>5} {:>8} {:>8} {:>6} {:>7} | {:>5} {:>7} {:>7} {:>7} {:>7} {:>6}",
         "tris",
+        "lanes",
         "build ms",
         "Mtris/s",
         "B/tri",
@@ -249,65 +391,78 @@ fn summary() {
         "rays",
         "single",
         "batch",
+        "occl",
         "obvhs",
         "ratio"
     );
     for n in sizes() {
         let tris = scene(n);
         let e = edges(&tris);
-        let build = wall(3, || {
-            black_box(Bvh::build(&e));
-        });
-        let bvh = Bvh::build(&e);
         let ob = Obvhs::build(&tris);
-        for (k, (name, rays)) in sets.iter().enumerate() {
-            // Both find the same hits (obvhs's triangle test rounds
-            // differently, so compare the sum of t loosely).
-            let (a, b) = (trace(&bvh, rays), ob.trace(rays));
-            assert!(
-                (a - b).abs() <= 1e-3 * a.abs(),
-                "wavetrace {a} vs obvhs {b}"
-            );
-            let single = time(5, || {
-                black_box(trace(&bvh, rays));
-            });
-            let batch = time(5, || {
-                black_box(trace_batch(&bvh, rays, &mut out));
-            });
-            let obvhs = time(5, || {
-                black_box(ob.trace(rays));
-            });
-            let lead = if k == 0 {
-                format!(
-                    "{:>5} {:>8.1} {:>8.2} {:>6.1} {:>7}",
-                    label(n),
-                    build * 1e3,
-                    tris.len() as f64 / build / 1e6,
-                    bvh.bytes() as f64 / tris.len() as f64,
-                    bvh.node_count()
-                )
-            } else {
-                format!("{:>38}", "")
+        for bvh in builds(&e) {
+            let options = BvhOptions {
+                width: bvh.simd_width(),
             };
-            let m = |s: f64| RAYS as f64 / s / 1e6;
-            eprintln!(
-                "{lead} | {name:>5} {:>7.2} {:>7.2} {:>7.2} {:>6.2}",
-                m(single),
-                m(batch),
-                m(obvhs),
-                obvhs / single.min(batch),
-            );
+            let build = wall(3, || {
+                black_box(Bvh::build_with(&e, &options));
+            });
+            for (k, (name, rays)) in sets.iter().enumerate() {
+                // Both find the same hits (obvhs's triangle test rounds
+                // differently, so compare the sum of t loosely).
+                let (a, b) = (trace(&bvh, rays), ob.trace(rays));
+                assert!(
+                    (a - b).abs() <= 1e-3 * a.abs(),
+                    "wavetrace {a} vs obvhs {b}"
+                );
+                let single = time(5, || {
+                    black_box(trace(&bvh, rays));
+                });
+                let batch = time(5, || {
+                    black_box(trace_batch(&bvh, rays, &mut out));
+                });
+                let ends = segment_ends(&bvh, rays);
+                let mut occ = vec![false; RAYS];
+                let occl = time(5, || {
+                    black_box(occlude_batch(&bvh, rays, &ends, &mut occ));
+                });
+                let obvhs = time(5, || {
+                    black_box(ob.trace(rays));
+                });
+                let lead = if k == 0 {
+                    format!(
+                        "{:>5} {:>5} {:>8.1} {:>8.2} {:>6.1} {:>7}",
+                        label(n),
+                        lanes(&bvh),
+                        build * 1e3,
+                        tris.len() as f64 / build / 1e6,
+                        bvh.bytes() as f64 / tris.len() as f64,
+                        bvh.node_count()
+                    )
+                } else {
+                    format!("{:>44}", "")
+                };
+                eprintln!(
+                    "{lead} | {name:>5} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>6.2}",
+                    m(single),
+                    m(batch),
+                    m(occl),
+                    m(obvhs),
+                    obvhs / single.min(batch),
+                );
+            }
         }
     }
     eprintln!(
         "(build: wall clock, all cores. rays: M rays per CPU-second of one thread, {RAYS} \
-         rays; ratio = obvhs time / wavetrace's faster mode)"
+         rays; occl: the same rays as shadow segments, about half occluded; ratio = obvhs \
+         time / wavetrace's faster closest-hit mode)"
     );
 }
 
 fn benches(c: &mut Criterion) {
     if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
         summary();
+        sphere_summary();
     }
     if std::env::var_os("WAVETRACE_BENCH_SUMMARY_ONLY").is_some() {
         return;
@@ -317,15 +472,22 @@ fn benches(c: &mut Criterion) {
     for n in sizes() {
         let e = edges(&scene(n));
         build.throughput(Throughput::Elements(e.len() as u64));
-        build.bench_with_input(BenchmarkId::from_parameter(label(n)), &e, |b, e| {
-            b.iter(|| Bvh::build(e))
-        });
+        for width in [SimdWidth::W8, SimdWidth::W16] {
+            if !width.is_available() {
+                continue;
+            }
+            let id = BenchmarkId::new(format!("x{}", width.lanes()), label(n));
+            build.bench_with_input(id, &e, |b, e| {
+                b.iter(|| Bvh::build_with(e, &BvhOptions { width }))
+            });
+        }
     }
     build.finish();
 
     for (group, aimed) in [("incoherent-box", false), ("incoherent-aimed", true)] {
         let rays = rays(aimed);
         let mut out = vec![None; RAYS];
+        let mut occ = vec![false; RAYS];
         let mut g = c.benchmark_group(group);
         g.throughput(Throughput::Elements(RAYS as u64));
         g.sample_size(10);
@@ -333,13 +495,20 @@ fn benches(c: &mut Criterion) {
         g.measurement_time(Duration::from_secs(2));
         for n in sizes() {
             let tris = scene(n);
-            let bvh = Bvh::build(&edges(&tris));
-            g.bench_function(BenchmarkId::new("single", label(n)), |b| {
-                b.iter(|| trace(&bvh, &rays))
-            });
-            g.bench_function(BenchmarkId::new("batch", label(n)), |b| {
-                b.iter(|| trace_batch(&bvh, &rays, &mut out))
-            });
+            // Closest hit against occlusion on the same rays, at each width.
+            for bvh in builds(&edges(&tris)) {
+                let x = lanes(&bvh);
+                let ends = segment_ends(&bvh, &rays);
+                g.bench_function(BenchmarkId::new(format!("single-x{x}"), label(n)), |b| {
+                    b.iter(|| trace(&bvh, &rays))
+                });
+                g.bench_function(BenchmarkId::new(format!("batch-x{x}"), label(n)), |b| {
+                    b.iter(|| trace_batch(&bvh, &rays, &mut out))
+                });
+                g.bench_function(BenchmarkId::new(format!("occluded-x{x}"), label(n)), |b| {
+                    b.iter(|| occlude_batch(&bvh, &rays, &ends, &mut occ))
+                });
+            }
             let ob = Obvhs::build(&tris);
             g.bench_function(BenchmarkId::new("obvhs", label(n)), |b| {
                 b.iter(|| ob.trace(&rays))
@@ -347,6 +516,33 @@ fn benches(c: &mut Criterion) {
         }
         g.finish();
     }
+
+    // Spheres: closest hit against occlusion on the same rays.
+    let tris = edges(&cornell_box());
+    let spheres = random_spheres(sphere_count());
+    let rays = rays(false);
+    let mut out = vec![None; RAYS];
+    let mut occ = vec![false; RAYS];
+    let mut g = c.benchmark_group("spheres");
+    g.throughput(Throughput::Elements(RAYS as u64));
+    g.sample_size(10);
+    g.warm_up_time(Duration::from_millis(500));
+    g.measurement_time(Duration::from_secs(2));
+    let n = label(spheres.len());
+    for bvh in sphere_builds(&tris, &spheres) {
+        let x = lanes(&bvh);
+        let ends = segment_ends(&bvh, &rays);
+        g.bench_function(BenchmarkId::new(format!("single-x{x}"), &n), |b| {
+            b.iter(|| trace(&bvh, &rays))
+        });
+        g.bench_function(BenchmarkId::new(format!("batch-x{x}"), &n), |b| {
+            b.iter(|| trace_batch(&bvh, &rays, &mut out))
+        });
+        g.bench_function(BenchmarkId::new(format!("occluded-x{x}"), &n), |b| {
+            b.iter(|| occlude_batch(&bvh, &rays, &ends, &mut occ))
+        });
+    }
+    g.finish();
 }
 
 criterion_group!(bvh_benches, benches);

@@ -1,5 +1,11 @@
-//! A whole render of the Cornell box (64x64, 16 spp, depth 3): rays/s and
-//! paths/s, wavefront and reference engines, 1 thread and all threads.
+//! Whole renders with the report's estimator (max depth 3): rays/s and
+//! paths/s.
+//!
+//! - `render_cornell_*`: the Cornell box at 64x64, 16 spp, wavefront and
+//!   reference engines, 1 thread and all threads;
+//! - `render_sphere1m`: `scenes/sphere-1m.toml` (the box with a sphere of a
+//!   million triangles) at 64x64, 16 spp, wavefront engine, 1 thread and all
+//!   threads (the hierarchy is built once, outside the timing).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use wavetrace::render::{Engine, RenderSettings, Renderer};
@@ -34,6 +40,22 @@ fn render(c: &mut Criterion) {
         }
         group.finish();
     }
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere-1m.toml");
+    let scene = Scene::load(&path).unwrap();
+    let mut group = c.benchmark_group("render_sphere1m_rays");
+    group.sample_size(10);
+    for threads in [1, all] {
+        let mut s = RenderSettings::for_scene(&scene);
+        (s.width, s.height, s.spp, s.threads, s.max_depth) = (64, 64, 16, threads, 3);
+        let renderer = Renderer::new(&scene, &s).unwrap();
+        let (_, counters, _) = renderer.render();
+        group.throughput(Throughput::Elements(counters.rays));
+        group.bench_function(format!("wavefront_{threads}t"), |b| {
+            b.iter(|| renderer.render())
+        });
+    }
+    group.finish();
 }
 
 criterion_group!(benches, render);

@@ -32,22 +32,65 @@ fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
+/// What is at an output path now.
+enum Target {
+    /// Nothing, or a regular file: written atomically (this path, or the
+    /// file a symbolic link names, so the link stays a link).
+    Regular(PathBuf),
+    /// Something else that can be written, such as a terminal, a pipe or
+    /// `/dev/null`: written in place, never replaced.
+    Special,
+}
+
+/// Where writing `path` goes, refusing a directory.
+fn target(path: &Path) -> std::io::Result<Target> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a directory",
+        )),
+        Ok(m) if !m.is_file() => Ok(Target::Special),
+        Ok(_) if path.is_symlink() => Ok(Target::Regular(std::fs::canonicalize(path)?)),
+        // Absent (or a dangling link, which the rename replaces).
+        _ => Ok(Target::Regular(path.to_path_buf())),
+    }
+}
+
 /// Write a file atomically: everything goes to a temporary file beside it,
 /// which is flushed to disk and then renamed over `path` (and the rename is
 /// flushed too, where the system allows). On any error the
 /// temporary file is removed and `path` is left as it was.
+///
+/// Only regular files are written so: an output that exists and is not
+/// one (a terminal, a pipe, `/dev/stdout`, `/dev/null`) is written in
+/// place, never replaced by a file; a symbolic link to a regular file is
+/// kept, and the file it names replaced atomically; a directory is
+/// refused.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), FileError> {
-    let tmp = temp_path(path);
+    let real = match target(path).map_err(|e| FileError::new(path, e))? {
+        Target::Special => {
+            return (|| {
+                let file = std::fs::OpenOptions::new().write(true).open(path)?;
+                let mut w = BufWriter::new(file);
+                write(&mut w)?;
+                w.into_inner().map_err(|e| e.into_error())?;
+                Ok(())
+            })()
+            .map_err(|source| FileError::new(path, source));
+        }
+        Target::Regular(real) => real,
+    };
+    let tmp = temp_path(&real);
     let result = (|| {
         let mut w = BufWriter::new(std::fs::File::create(&tmp)?);
         write(&mut w)?;
         let f = w.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        sync_parent(path);
+        std::fs::rename(&tmp, &real)?;
+        sync_parent(&real);
         Ok(())
     })();
     result.map_err(|source| {
@@ -75,9 +118,15 @@ fn sync_parent(path: &Path) {
 }
 
 /// Check, before any work starts, that `path` can be written: its directory
-/// exists and a file can be created there.
+/// exists and a file can be created there (or, for an output that is not a
+/// regular file, such as `/dev/stdout`, that it is not a directory: it is
+/// written in place, see [`write_atomic`]).
 pub fn check_writable(path: &Path) -> Result<(), FileError> {
-    let tmp = temp_path(path);
+    let real = match target(path).map_err(|e| FileError::new(path, e))? {
+        Target::Special => return Ok(()),
+        Target::Regular(real) => real,
+    };
+    let tmp = temp_path(&real);
     std::fs::File::create(&tmp)
         .and_then(|_| std::fs::remove_file(&tmp))
         .map_err(|source| FileError::new(path, source))
@@ -99,5 +148,29 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     match (normal(a), normal(b)) {
         (Some(a), Some(b)) => a == b,
         _ => a == b,
+    }
+}
+
+/// The memory of this system in bytes, where it can be told: the smaller
+/// of the physical memory (`MemTotal` of `/proc/meminfo`) and the control
+/// group's limit (`memory.max`, or `memory.limit_in_bytes` of cgroup v1).
+/// `None` elsewhere.
+pub fn system_memory() -> Option<u64> {
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let total = read("/proc/meminfo").and_then(|text| {
+        let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        kib.checked_mul(1024)
+    });
+    let cgroup = [
+        "/sys/fs/cgroup/memory.max",
+        "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+    ]
+    .iter()
+    .filter_map(|p| read(p)?.trim().parse::<u64>().ok())
+    .min();
+    match (total, cgroup) {
+        (Some(t), Some(c)) => Some(t.min(c)),
+        (t, c) => t.or(c),
     }
 }

@@ -283,6 +283,23 @@ fn read_pfm(bytes: &[u8]) -> std::result::Result<Image, String> {
 
 fn read_exr(path: &Path) -> std::result::Result<Image, String> {
     use exr::prelude::{ReadChannels, ReadLayers, RgbChannels, Vec2, read};
+    // The header's size is checked before pixels of that size are
+    // allocated: a forged header (or a tiny, highly compressed file) could
+    // ask for any amount.
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| format!("cannot read the EXR image: {e}"))?;
+    for h in &meta.headers {
+        let bytes = (h.layer_size.0 as u64)
+            .checked_mul(h.layer_size.1 as u64)
+            .and_then(|n| n.checked_mul(12));
+        let fits = crate::fs::system_memory().unwrap_or(u64::MAX) / 2;
+        if bytes.is_none_or(|b| b > fits) {
+            return Err(format!(
+                "the EXR image is {}x{} pixels: too large to load in this system's memory",
+                h.layer_size.0, h.layer_size.1
+            ));
+        }
+    }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

@@ -1,6 +1,7 @@
 //! Render settings and the driver that runs an engine over sample ranges.
 
-use crate::accel::bvh::Bvh;
+use crate::accel::bvh::{Bvh, BvhOptions};
+use crate::accel::simd::SimdWidth;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum};
 use crate::integrator::nee::Estimator;
@@ -76,6 +77,71 @@ pub struct RenderSettings {
     pub sampler: SamplerKind,
     /// Russian roulette may end paths from this depth on (`None`: never).
     pub rr_depth: Option<u32>,
+    /// Lanes of the intersection kernels (8, or 16 with AVX-512). Never
+    /// changes the image: both widths give the same hits bit for bit.
+    pub simd: SimdWidth,
+    /// The most memory, in bytes, the render may need by its
+    /// [`MemoryEstimate`]; `None`: the system's memory
+    /// ([`system_memory`]). Does not change the image.
+    pub memory_limit: Option<u64>,
+}
+
+/// Bytes per pixel of a render: the film's sums (48), the sums of the
+/// sample pass being rendered (48), the linear image written out (12) and
+/// its encoding (up to 16).
+pub const FILM_BYTES_PER_PIXEL: u64 = 124;
+
+/// Bytes per path of a worker thread's wavefront queues: the path queue
+/// (about 70), the ray batch and the shadow-ray queue (a bound, not a
+/// measurement: the estimate errs high).
+pub const QUEUE_BYTES_PER_PATH: u64 = 192;
+
+/// Bytes per triangle of the hierarchy and its build: the triangles'
+/// edges, the build's references and bins, the nodes and 8-wide packs.
+pub const BVH_BYTES_PER_TRIANGLE: u64 = 256;
+
+/// What a render will allocate, by part, in bytes: checked against a
+/// limit before any of it is allocated
+/// ([`RenderSettings::check_memory`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// The film and the images made from it (width x height).
+    pub film: u64,
+    /// Every worker thread's queues (threads x batch size).
+    pub queues: u64,
+    /// The bounding volume hierarchy (triangles).
+    pub bvh: u64,
+}
+
+impl MemoryEstimate {
+    /// The sum of the parts (saturating: an estimate past 2^64 bytes is
+    /// refused like any other too large).
+    pub fn total(&self) -> u64 {
+        self.film
+            .saturating_add(self.queues)
+            .saturating_add(self.bvh)
+    }
+}
+
+pub use crate::fs::system_memory;
+
+/// The limit used where the system's memory cannot be told.
+pub const FALLBACK_MEMORY_LIMIT: u64 = 64 << 30;
+
+/// `bytes` in words: "1.5 GiB".
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut x = bytes as f64;
+    let mut unit = 0;
+    while x >= 1024.0 && unit + 1 < UNITS.len() {
+        x /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{x:.1} {}", UNITS[unit])
+    }
 }
 
 /// The estimator a render uses unless the scene, a profile or a flag says
@@ -84,13 +150,18 @@ pub const DEFAULT_INTEGRATOR: Integrator = Integrator::Nee;
 
 /// The sampler a render uses unless the scene, a profile or a flag says
 /// otherwise.
-pub const DEFAULT_SAMPLER: SamplerKind = SamplerKind::Independent;
+pub const DEFAULT_SAMPLER: SamplerKind = SamplerKind::Sobol;
 
 /// Default paths per wavefront batch: the queues stay in the L2 cache.
 pub const DEFAULT_BATCH_SIZE: usize = 4096;
 
 /// The largest batch accepted (its queue takes about 70 MiB).
 pub const MAX_BATCH_SIZE: usize = 1 << 20;
+
+/// The most worker threads a render starts: far more than any machine's
+/// cores today, far fewer than would take the system down. Checked before
+/// the thread pool starts.
+pub const MAX_THREADS: usize = 4096;
 
 /// The deepest paths accepted: the reference tracer recurses once per
 /// bounce, and a uniform hemisphere estimator gains nothing from more.
@@ -112,7 +183,64 @@ impl RenderSettings {
             integrator: scene.options.integrator.unwrap_or(DEFAULT_INTEGRATOR),
             sampler: scene.options.sampler.unwrap_or(DEFAULT_SAMPLER),
             rr_depth: scene.options.rr_depth,
+            simd: SimdWidth::detect(),
+            memory_limit: None,
         }
+    }
+
+    /// What a render of `triangles` triangles with these settings will
+    /// allocate (see [`MemoryEstimate`]).
+    pub fn memory_estimate(&self, triangles: usize) -> MemoryEstimate {
+        let pixels = self.width as u64 * self.height as u64;
+        let paths = (self.threads as u64).saturating_mul(self.batch_size.div_ceil(8) as u64 * 8);
+        MemoryEstimate {
+            film: pixels.saturating_mul(FILM_BYTES_PER_PIXEL),
+            queues: paths.saturating_mul(QUEUE_BYTES_PER_PATH),
+            bvh: (triangles as u64).saturating_mul(BVH_BYTES_PER_TRIANGLE),
+        }
+    }
+
+    /// Refuse, before anything is allocated, a render of `triangles`
+    /// triangles whose [`memory_estimate`](Self::memory_estimate) exceeds
+    /// [`memory_limit`](Self::memory_limit) (or the system's memory),
+    /// naming the settings of its largest part.
+    pub fn check_memory(&self, triangles: usize) -> Result<()> {
+        let (limit, whose) = match self.memory_limit {
+            Some(limit) => (limit, "the memory limit (WAVETRACE_MAX_MEMORY)"),
+            None => match system_memory() {
+                Some(m) => (m, "this system's memory"),
+                None => (FALLBACK_MEMORY_LIMIT, "the default memory limit"),
+            },
+        };
+        let e = self.memory_estimate(triangles);
+        if e.total() <= limit {
+            return Ok(());
+        }
+        let film = format!(
+            "film {} for {}x{} pixels",
+            human_bytes(e.film),
+            self.width,
+            self.height
+        );
+        let queues = format!(
+            "queues {} for {} thread(s) x {} paths",
+            human_bytes(e.queues),
+            self.threads,
+            self.batch_size
+        );
+        let bvh = format!("BVH {} for {triangles} triangles", human_bytes(e.bvh));
+        let advice = if e.film >= e.queues && e.film >= e.bvh {
+            "lower --width and --height (or the scene's camera.width and camera.height)"
+        } else if e.queues >= e.bvh {
+            "lower --threads or --batch-size"
+        } else {
+            "use a scene of fewer triangles"
+        };
+        Err(Error::Settings(format!(
+            "the render would need about {} ({film}, {queues}, {bvh}), more than {whose} ({}); {advice}",
+            human_bytes(e.total()),
+            human_bytes(limit)
+        )))
     }
 
     /// How paths are traced: the integrator, the depth, Russian roulette.
@@ -151,6 +279,12 @@ impl RenderSettings {
         if self.threads == 0 {
             return bad("threads must be at least 1");
         }
+        if self.threads > MAX_THREADS {
+            return Err(Error::Settings(format!(
+                "--threads {}: more than the {MAX_THREADS} worker threads a render may start",
+                self.threads
+            )));
+        }
         if !(1..=MAX_BATCH_SIZE).contains(&self.batch_size) {
             return Err(Error::Settings(format!(
                 "the batch size must be between 1 and {MAX_BATCH_SIZE} paths"
@@ -163,6 +297,13 @@ impl RenderSettings {
         }
         if self.rr_depth == Some(0) {
             return bad("--rr-depth must be at least 1 (camera rays are never ended)");
+        }
+        if !self.simd.is_available() {
+            return Err(Error::Settings(format!(
+                "{} lanes ({}) need AVX-512 F, VL, DQ and BW, which this CPU lacks; use 8",
+                self.simd.lanes(),
+                self.simd.name()
+            )));
         }
         if self.max_depth > MAX_DEPTH {
             return Err(Error::Settings(format!(
@@ -221,6 +362,7 @@ impl Renderer {
     /// Validate the settings and prepare the scene.
     pub fn new(scene: &Scene, settings: &RenderSettings) -> Result<Self> {
         settings.validate()?;
+        settings.check_memory(scene.triangles.len())?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(settings.threads)
             .build()
@@ -228,7 +370,11 @@ impl Renderer {
                 Error::Settings(format!("cannot start {} threads: {e}", settings.threads))
             })?;
         // One hierarchy, built on the render's threads, shared by the engine.
-        let bvh = Arc::new(pool.install(|| Bvh::build(&crate::accel::scene_triangles(scene))));
+        let options = BvhOptions {
+            width: settings.simd,
+        };
+        let triangles = crate::accel::scene_triangles(scene);
+        let bvh = Arc::new(pool.install(|| Bvh::build_with(&triangles, &options)));
         let estimator = settings.estimator();
         let engine = match settings.engine {
             Engine::Reference => EngineState::Reference(
@@ -430,6 +576,7 @@ mod tests {
         assert_eq!(h0, hash(&|s| s.spp = 999));
         assert_eq!(h0, hash(&|s| s.threads = 7));
         assert_eq!(h0, hash(&|s| s.batch_size = 3));
+        assert_eq!(h0, hash(&|s| s.memory_limit = Some(1 << 30)));
         // Settings that do.
         assert_ne!(h0, hash(&|s| s.seed = 1));
         assert_ne!(h0, hash(&|s| s.width += 1));
@@ -437,7 +584,8 @@ mod tests {
         assert_ne!(h0, hash(&|s| s.max_depth += 1));
         assert_ne!(h0, hash(&|s| s.engine = Engine::Reference));
         assert_ne!(h0, hash(&|s| s.integrator = Integrator::Bsdf));
-        assert_ne!(h0, hash(&|s| s.sampler = SamplerKind::Sobol));
+        assert_ne!(h0, hash(&|s| s.sampler = SamplerKind::Independent));
+        assert_eq!(h0, hash(&|s| s.simd = crate::accel::simd::SimdWidth::W8));
         assert_ne!(h0, hash(&|s| s.rr_depth = Some(3)));
         // The report's estimator hashes as it did before integrators.
         let report = base.clone().report();

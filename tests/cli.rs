@@ -414,3 +414,53 @@ fn flags_override_the_profile_which_overrides_the_scene() {
     assert!(stderr(&o).contains("samples"), "{}", stderr(&o));
     assert!(!dir.join("y.png").exists());
 }
+
+/// `--simd 8` and `--simd 16` (where the CPU has AVX-512) give the same
+/// bytes for every integrator, and the stats say which kernels ran; a width
+/// the CPU lacks, or one that does not exist, is refused before work
+/// starts.
+#[test]
+fn both_kernel_widths_give_the_same_image() {
+    let dir = TempDir::new("simd");
+    let has16 = wavetrace::accel::simd::SimdWidth::W16.is_available();
+    for integrator in ["report", "bsdf", "nee"] {
+        let mut images = vec![];
+        for lanes in ["8", "16"] {
+            if lanes == "16" && !has16 {
+                continue;
+            }
+            let out = dir.path().join(format!("{integrator}-{lanes}.pfm"));
+            let stats = dir.path().join(format!("{integrator}-{lanes}.json"));
+            run_ok(
+                &dir,
+                &[
+                    concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/sphere-1m.toml"),
+                    "--width",
+                    "24",
+                    "--height",
+                    "16",
+                    "--spp",
+                    "2",
+                    "--integrator",
+                    integrator,
+                    "--simd",
+                    lanes,
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--stats",
+                    stats.to_str().unwrap(),
+                ],
+            );
+            let j: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+            assert_eq!(j["kernel_lanes"].as_u64(), Some(lanes.parse().unwrap()));
+            images.push(std::fs::read(&out).unwrap());
+        }
+        assert!(images.windows(2).all(|w| w[0] == w[1]), "{integrator}");
+    }
+    if !has16 {
+        assert_refused(&TempDir::new("simd16"), &["--simd", "16"], "AVX-512");
+    }
+    let o = run(&dir, &["--simd", "12"]);
+    assert!(!o.status.success() && stderr(&o).contains("8 or 16 lanes"));
+}

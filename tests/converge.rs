@@ -5,7 +5,7 @@ mod common;
 
 use common::{TempDir, run, run_ok, stderr, stdout};
 use wavetrace::metrics::{ImageErrors, mean_flip};
-use wavetrace::render::{RenderSettings, Renderer};
+use wavetrace::render::{DEFAULT_SAMPLER, RenderSettings, Renderer};
 use wavetrace::run::converge::{
     Crop, DEFAULT_JND, Setting, diminishing_returns, spp_levels, study,
 };
@@ -191,7 +191,7 @@ fn converge_writes_its_files() {
     args.extend(tiny);
     let out = stdout(&run_ok(dir.path(), &args));
     assert!(
-        out.contains("nee/independent") && !out.contains("report/"),
+        out.contains(&format!("nee/{}", DEFAULT_SAMPLER.name())) && !out.contains("report/"),
         "{out}"
     );
     assert!(dir.join("again.csv").exists());

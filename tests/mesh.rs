@@ -230,11 +230,19 @@ fn errors_name_the_file_and_line() {
         "m.mtl",
         3,
     );
-    // Not UTF-8.
+    // Not UTF-8 is not an error (exporters write Latin-1 names): the bytes
+    // are decoded lossily, and a bad number on such a line is still named.
     let d = TempDir::new("e12");
-    std::fs::write(d.join("m.obj"), b"v 0 0 0\n\xff\xfe\n").unwrap();
+    std::fs::write(d.join("m.obj"), b"v 0 0 0\n\xff\xfe\nv 1 0 \xe9\n").unwrap();
     let e = load(&d, &[], &mesh("m.obj", "material = \"white\"")).unwrap_err();
-    assert_eq!(e.line, 2, "{e}");
+    assert_eq!(e.line, 3, "{e}");
+    std::fs::write(
+        d.join("m.obj"),
+        b"# Mod\xe8le\no Bo\xeete\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let s = load(&d, &[], &mesh("m.obj", "material = \"white\"")).unwrap();
+    assert!(!s.triangles.is_empty());
 }
 
 #[test]

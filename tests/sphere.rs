@@ -1,8 +1,11 @@
 //! The ray/sphere kernel against a scalar f64 reference on a million random
-//! rays, and the 8-wide pack against the scalar kernel bit for bit.
+//! rays — scalar, and the hierarchy's packs at 8 lanes and (where the CPU
+//! has AVX-512) 16, which give the scalar kernel's bits lane for lane — and
+//! the 8-wide pack against the scalar kernel bit for bit.
 
 use glam::{DVec3, Vec3};
-use wavetrace::accel::sphere::{Sphere, Sphere8, hit_normal, intersect_sphere};
+use wavetrace::accel::simd::SimdWidth;
+use wavetrace::accel::sphere::{Sphere, Sphere8, hit_normal, intersect_packed, intersect_sphere};
 use wavetrace::integrator::sampler::PathRng;
 use wavetrace::math::V3;
 
@@ -127,8 +130,62 @@ fn make_case(rng: &mut Rng, kind: usize) -> Case {
 /// - hit/miss must agree except where `|δ| < 4 ε (|f| + r) / r` (grazing)
 ///   or a root lies within the `t` tolerance of `t_min`;
 /// - `|t - t_ref| ≤ 8 ε (|f| + r) / |d| · max(1, 1/sqrt(δ))`.
+/// The widths of the hierarchy's sphere packs this CPU runs.
+fn widths() -> Vec<SimdWidth> {
+    if !SimdWidth::W16.is_available() {
+        eprintln!("note: no AVX-512 on this CPU: 16 lanes are not checked");
+    }
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .collect()
+}
+
+/// The ray against `spheres` through the packed kernel at every width:
+/// each lane's `t` has the scalar kernel's bits, and padding lanes miss.
+/// Returns the scalar `(hit, t)` of each sphere.
+fn packed_equals_scalar(
+    widths: &[SimdWidth],
+    spheres: &[Sphere],
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+) -> Vec<(bool, f32)> {
+    let scalar: Vec<(bool, f32)> = spheres
+        .iter()
+        .map(|s| {
+            intersect_sphere(
+                V3::from(o),
+                V3::from(d),
+                V3::from(s.center),
+                s.radius,
+                t_min,
+            )
+        })
+        .collect();
+    for &w in widths {
+        let ts = intersect_packed(w, spheres, o, d, t_min);
+        assert_eq!(ts.len(), spheres.len().div_ceil(w.lanes()) * w.lanes());
+        for (l, t) in ts.iter().enumerate() {
+            match scalar.get(l) {
+                Some(&(_, want)) => assert_eq!(
+                    t.to_bits(),
+                    want.to_bits(),
+                    "{w:?} lane {l}: {t} vs scalar {want} (o={o:?} d={d:?} {:?})",
+                    spheres[l]
+                ),
+                None => assert_eq!(*t, f32::INFINITY, "{w:?}: padding lane {l} hit"),
+            }
+        }
+    }
+    scalar
+}
+
 #[test]
 fn kernel_matches_f64_reference_on_a_million_rays() {
+    let widths = widths();
+    // Spheres of earlier cases, to fill the other lanes of the packs.
+    let mut others: Vec<Sphere> = Vec::new();
     let mut rng = Rng::new(42);
     let kinds = ["outside", "grazing", "inside", "behind", "surface"];
     // rays, hits, excused (grazing or at t_min), worst |Δt| / tolerance
@@ -140,6 +197,22 @@ fn kernel_matches_f64_reference_on_a_million_rays() {
         let k = make_case(&mut rng, kind);
         let (hit, t) = intersect_sphere(V3::from(k.o), V3::from(k.d), V3::from(k.c), k.r, k.t_min);
         assert_eq!(hit, t.is_finite(), "t is +∞ exactly where the ray misses");
+        // The same bits from the packs, the case's sphere in lane
+        // `i % 19` among up to 18 others (so in either pack of two, or
+        // alone before padding).
+        let sphere = Sphere {
+            center: k.c,
+            radius: k.r,
+        };
+        let at = (i % 19).min(others.len());
+        let mut set: Vec<Sphere> = others[others.len() - at..].to_vec();
+        set.push(sphere);
+        let lanes = packed_equals_scalar(&widths, &set, k.o, k.d, k.t_min);
+        assert_eq!(lanes[at].1.to_bits(), t.to_bits());
+        if others.len() >= 64 {
+            others.remove(0);
+        }
+        others.push(sphere);
         let (delta, roots) = reference(k.o, k.d, k.c, k.r);
         let tm = k.t_min as f64;
         let ref_t = roots.and_then(|(t0, t1)| [t0, t1].into_iter().find(|&t| t > tm));

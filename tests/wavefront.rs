@@ -13,6 +13,7 @@ use wavetrace::integrator::sampler::PathRng;
 use wavetrace::math::V3;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::Scene;
+use wavetrace::scene::options::{Integrator, SamplerKind};
 use wide::f32x8;
 
 fn render(scene: &Scene, f: impl FnOnce(&mut RenderSettings)) -> Film {
@@ -57,6 +58,20 @@ fn assert_close(scene: &str, a: &Film, b: &Film) {
     assert_eq!(a.invalid_samples, b.invalid_samples);
 }
 
+/// Every integrator × sampler, and the default estimator with Russian
+/// roulette.
+fn estimators() -> Vec<(Integrator, SamplerKind, Option<u32>)> {
+    let mut all = vec![];
+    for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
+        for sampler in [SamplerKind::Independent, SamplerKind::Sobol] {
+            all.push((integrator, sampler, None));
+        }
+    }
+    all.push((Integrator::Nee, SamplerKind::Sobol, Some(1)));
+    all.push((Integrator::Bsdf, SamplerKind::Independent, Some(2)));
+    all
+}
+
 #[test]
 fn wavefront_matches_reference_on_every_scene() {
     for (name, scene) in all_scenes() {
@@ -66,27 +81,32 @@ fn wavefront_matches_reference_on_every_scene() {
         } else {
             &[(24, 4, 3), (17, 3, 1), (32, 2, 2), (12, 5, 6)]
         };
-        for &(size, spp, depth) in combos {
-            let set = |s: &mut RenderSettings| {
-                s.width = size;
-                s.height = size + 3;
-                s.spp = spp;
-                s.max_depth = depth;
-                s.seed = 11;
-            };
-            let reference = render(&scene, |s| {
-                set(s);
-                s.engine = Engine::Reference;
-            });
-            let wavefront = render(&scene, |s| {
-                set(s);
-                s.engine = Engine::Wavefront;
-            });
-            assert_close(
-                &format!("{name} {size}px {spp}spp depth {depth}"),
-                &reference,
-                &wavefront,
-            );
+        for (integrator, sampler, rr_depth) in estimators() {
+            for &(size, spp, depth) in combos {
+                let set = |s: &mut RenderSettings| {
+                    s.width = size;
+                    s.height = size + 3;
+                    s.spp = spp;
+                    s.max_depth = depth;
+                    s.seed = 11;
+                    (s.integrator, s.sampler, s.rr_depth) = (integrator, sampler, rr_depth);
+                };
+                let reference = render(&scene, |s| {
+                    set(s);
+                    s.engine = Engine::Reference;
+                });
+                let wavefront = render(&scene, |s| {
+                    set(s);
+                    s.engine = Engine::Wavefront;
+                });
+                assert_close(
+                    &format!(
+                        "{name} {integrator:?} {sampler:?} rr {rr_depth:?} {size}px {spp}spp depth {depth}"
+                    ),
+                    &reference,
+                    &wavefront,
+                );
+            }
         }
     }
 }

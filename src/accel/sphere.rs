@@ -1,5 +1,8 @@
-//! Ray/sphere intersection, written once for any [`Real`], and 8-sphere
-//! packs ([`Sphere8`]) tested against one ray in SIMD.
+//! Ray/sphere intersection, written once for any [`Real`]; 8-sphere packs
+//! ([`Sphere8`]) tested against one ray in SIMD; the hierarchy's sphere
+//! packs ([`SpherePack`], 8 or 16 lanes, the same width as its triangle
+//! packs); and the brute-force closest hit over triangles and spheres
+//! together ([`closest_hit_brute_force_prims`]).
 //!
 //! The formulation is the numerically robust one of Haines, Günther and
 //! Akenine-Möller, "Precision Improvements for Ray/Sphere Intersection"
@@ -24,6 +27,10 @@
 //! near root of a few ulps of `r` around 0: callers pass a `t_min` above
 //! that noise (as for triangles), or the ray hits the sphere it left.
 
+#[cfg(target_arch = "x86_64")]
+use crate::accel::simd::F32x16;
+use crate::accel::simd::{Lanes, SimdWidth};
+use crate::accel::triangle::{Hit, PackHits, TriangleEdges, closest_hit_brute_force};
 use crate::math::{Real, V3, Vec3x8};
 use glam::Vec3;
 use wide::f32x8;
@@ -64,12 +71,32 @@ pub fn hit_normal<R: Real>(o: V3<R>, d: V3<R>, t: R, c: V3<R>) -> V3<R> {
 }
 
 /// One sphere: its center and radius.
+///
+/// The primitive that [`Bvh::build_prims`](crate::accel::bvh::Bvh::build_prims)
+/// takes beside the triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
     /// The center.
     pub center: Vec3,
     /// The radius (positive).
     pub radius: f32,
+}
+
+impl Sphere {
+    /// The sphere of center `center` and radius `radius`.
+    pub fn new(center: Vec3, radius: f32) -> Self {
+        Self { center, radius }
+    }
+
+    /// Its bounding box (minimum and maximum corners), or `None` where a
+    /// coordinate or the radius is not finite (such a sphere is kept out of
+    /// a hierarchy's tree and tested against every ray, as brute force
+    /// would).
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let r = Vec3::splat(self.radius.abs());
+        let (lo, hi) = (self.center - r, self.center + r);
+        (self.radius.is_finite() && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+    }
 }
 
 /// Up to eight spheres in structure-of-arrays form, intersected against one
@@ -142,4 +169,165 @@ impl Sphere8 {
         }
         best
     }
+}
+
+/// [`Lanes::LANES`] spheres (8 or 16) in structure-of-arrays form, with
+/// the index each is reported by: the hierarchy's sphere leaves. Unused
+/// lanes hold a NaN sphere (which no ray hits) with index `u32::MAX`.
+///
+/// Each lane runs [`intersect_sphere`], so a lane gives the same bits as
+/// the scalar kernel on its sphere alone, at either width.
+#[derive(Clone, Copy, Debug)]
+pub struct SpherePack<R: Lanes> {
+    /// The centers, one per lane.
+    pub center: V3<R>,
+    /// The radii, one per lane.
+    pub radius: R,
+    /// Each lane's primitive index (`u32::MAX` for padding), as `i32` bits.
+    pub index: R::Index,
+}
+
+impl<R: Lanes> SpherePack<R> {
+    /// Pack up to [`Lanes::LANES`] spheres with their indices.
+    ///
+    /// # Panics
+    ///
+    /// With more than [`Lanes::LANES`] spheres.
+    pub fn pack(spheres: &[(u32, Sphere)]) -> Self {
+        assert!(spheres.len() <= R::LANES, "too many spheres for a pack");
+        let lane = |f: &dyn Fn(&Sphere) -> f32| {
+            let v: Vec<f32> = spheres.iter().map(|(_, s)| f(s)).collect();
+            R::from_slice(&v, f32::NAN)
+        };
+        let index: Vec<i32> = spheres.iter().map(|(i, _)| *i as i32).collect();
+        Self {
+            center: V3::new(
+                lane(&|s| s.center.x),
+                lane(&|s| s.center.y),
+                lane(&|s| s.center.z),
+            ),
+            radius: lane(&|s| s.radius),
+            index: R::index_from_slice(&index, -1),
+        }
+    }
+
+    /// Test one ray (broadcast to all lanes) against the pack's spheres,
+    /// keeping in `best` each lane's smallest `(t, index)`: the same rule
+    /// as [`TrianglePack::intersect`](crate::accel::triangle::TrianglePack::intersect),
+    /// `IN_INDEX_ORDER` included.
+    #[inline(always)]
+    pub fn intersect<const IN_INDEX_ORDER: bool>(
+        &self,
+        o: &V3<R>,
+        d: &V3<R>,
+        t_min: R,
+        best: &mut PackHits<R>,
+    ) {
+        let (hit, t) = intersect_sphere(*o, *d, self.center, self.radius, t_min);
+        let closer = if IN_INDEX_ORDER {
+            hit & t.lt(best.t)
+        } else {
+            let idx_lt = R::index_lt(self.index, best.index);
+            hit & (t.lt(best.t) | (t.eq(best.t) & idx_lt))
+        };
+        best.t = R::select(closer, t, best.t);
+        best.index = R::index_select(closer, self.index, best.index);
+    }
+
+    /// Whether the ray hits one of the pack's spheres at a distance
+    /// `t_min < t < t_max`: the same test, lane for lane, as
+    /// [`SpherePack::intersect`] with `best.t = t_max`.
+    #[inline(always)]
+    pub fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
+        let (hit, t) = intersect_sphere(*o, *d, self.center, self.radius, t_min);
+        R::any(hit & t.lt(t_max))
+    }
+
+    /// Each lane's `t` (`+∞` where it misses), in lane order, onto `out`.
+    #[inline(always)]
+    fn lane_ts(&self, o: Vec3, d: Vec3, t_min: f32, out: &mut Vec<f32>) {
+        let (_, t) = intersect_sphere(
+            V3::splat(o),
+            V3::splat(d),
+            self.center,
+            self.radius,
+            R::splat(t_min),
+        );
+        out.extend_from_slice(&t.to_vec());
+    }
+}
+
+/// The pack kernel at `R`'s width over `spheres`, [`Lanes::LANES`] at a
+/// time: every lane's `t`, padding included.
+#[inline(always)]
+fn packed_ts<R: Lanes>(spheres: &[Sphere], o: Vec3, d: Vec3, t_min: f32) -> Vec<f32> {
+    let indexed: Vec<(u32, Sphere)> = spheres
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (i as u32, *s))
+        .collect();
+    let mut out = Vec::with_capacity(spheres.len().div_ceil(R::LANES) * R::LANES);
+    for c in indexed.chunks(R::LANES) {
+        SpherePack::<R>::pack(c).lane_ts(o, d, t_min, &mut out);
+    }
+    out
+}
+
+/// [`packed_ts`] at 16 lanes, compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn packed_ts16(spheres: &[Sphere], o: Vec3, d: Vec3, t_min: f32) -> Vec<f32> {
+    packed_ts::<F32x16>(spheres, o, d, t_min)
+}
+
+/// The hierarchy's sphere kernel ([`SpherePack`]) at `width` (8 where the
+/// CPU lacks it): the ray `o + t·d` against `spheres`, packed `width` at a
+/// time in order, giving every lane's `t` (`+∞` where it misses), the
+/// padding lanes of the last pack included. For tests: each lane must give
+/// the same bits as [`intersect_sphere`] on its sphere alone.
+pub fn intersect_packed(
+    width: SimdWidth,
+    spheres: &[Sphere],
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+) -> Vec<f32> {
+    match width {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: entered only where the CPU has AVX-512.
+        SimdWidth::W16 if width.is_available() => unsafe { packed_ts16(spheres, o, d, t_min) },
+        _ => packed_ts::<f32x8>(spheres, o, d, t_min),
+    }
+}
+
+/// Scalar brute force over triangles and spheres together: the plainest
+/// closest-hit query over mixed primitives, the reference the hierarchy
+/// matches bit for bit.
+///
+/// Primitive indices: triangle `i` is `i`, sphere `j` is
+/// `tris.len() + j`. The answer is the smallest `(t, index)` with
+/// `t_min < t < t_max`: the triangles by [`closest_hit_brute_force`], then
+/// each sphere by [`intersect_sphere`] when strictly closer (on equal `t`
+/// the lower index, which came first, stays).
+pub fn closest_hit_brute_force_prims(
+    tris: &[TriangleEdges],
+    spheres: &[Sphere],
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<Hit> {
+    let mut best = closest_hit_brute_force(tris, o, d, t_min, t_max);
+    let (ov, dv) = (V3::from(o), V3::from(d));
+    for (j, s) in spheres.iter().enumerate() {
+        let limit = best.map_or(t_max, |h| h.t);
+        let (hit, t) = intersect_sphere(ov, dv, V3::from(s.center), s.radius, t_min);
+        if hit && t < limit {
+            best = Some(Hit {
+                triangle: (tris.len() + j) as u32,
+                t,
+            });
+        }
+    }
+    best
 }

@@ -6,10 +6,11 @@
 //! tested in, so every intersector — scalar brute force, 8-wide packs, a
 //! hierarchy — returns the same triangle and the same `t`, bit for bit.
 
-use crate::math::{Real, V3, Vec3x8};
+use crate::accel::simd::Lanes;
+use crate::math::{Real, V3};
 use crate::scene::Triangle;
 use glam::Vec3;
-use wide::{f32x4, f32x8, i32x8};
+use wide::f32x8;
 
 /// A triangle as the intersection kernel wants it: one vertex, two edges
 /// and their cross product.
@@ -101,10 +102,14 @@ impl From<&TriangleEdges> for V3Tri<f32> {
     }
 }
 
-/// The closest hit of one ray: triangle index and distance.
+/// The closest hit of one ray: primitive index and distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
-    /// Index of the triangle hit.
+    /// Index of the primitive hit: triangles first, then spheres. Triangle
+    /// `i` is `i`; in a hierarchy built with spheres
+    /// ([`Bvh::build_prims`](crate::accel::bvh::Bvh::build_prims)), sphere
+    /// `j` is `T + j` with `T` the number of triangles. (The name is from
+    /// when triangles were the only primitive.)
     pub triangle: u32,
     /// Distance along the (unit) ray direction.
     pub t: f32,
@@ -236,33 +241,39 @@ mod tests {
     }
 }
 
-/// Eight triangles in structure-of-arrays form, tested against one ray at
-/// once by [`Triangle8::intersect`]. Unused lanes hold an all-zero
-/// triangle (which no ray hits) with index `u32::MAX`.
+/// [`Lanes::LANES`] triangles (8 or 16) in structure-of-arrays form, tested
+/// against one ray at once by [`TrianglePack::intersect`]. Unused lanes
+/// hold an all-zero triangle (which no ray hits) with index `u32::MAX`.
 #[derive(Clone, Copy, Debug)]
-pub struct Triangle8 {
-    /// The eight triangles, one per lane.
-    pub tri: V3Tri<f32x8>,
+pub struct TrianglePack<R: Lanes> {
+    /// The triangles, one per lane.
+    pub tri: V3Tri<R>,
     /// Each lane's triangle index (`u32::MAX` for padding), as `i32` bits.
-    pub index: i32x8,
+    pub index: R::Index,
 }
+
+/// Eight triangles in one pack: the 8-lane (AVX2) kernel's unit.
+pub type Triangle8 = TrianglePack<f32x8>;
 
 /// The running closest hit of one ray, per lane, while packs are tested.
 #[derive(Clone, Copy, Debug)]
-pub struct LaneHits {
+pub struct PackHits<R: Lanes> {
     /// Best distance per lane (the ray's `t_max` where nothing was hit).
-    pub t: f32x8,
+    pub t: R,
     /// Triangle index per lane (`i32::MAX` where nothing was hit).
-    pub index: i32x8,
+    pub index: R::Index,
 }
 
-impl LaneHits {
+/// [`PackHits`] for 8 lanes.
+pub type LaneHits = PackHits<f32x8>;
+
+impl<R: Lanes> PackHits<R> {
     /// No hit yet: every lane at `t_max`.
     #[inline(always)]
     pub fn new(t_max: f32) -> Self {
         Self {
-            t: f32x8::splat(t_max),
-            index: i32x8::splat(i32::MAX),
+            t: R::splat(t_max),
+            index: R::index_splat(i32::MAX),
         }
     }
 
@@ -273,15 +284,8 @@ impl LaneHits {
     /// reaches) and index `i32::MAX`.
     #[inline(always)]
     pub fn closest(&self) -> Option<Hit> {
-        // A tree of minima: 8 lanes -> 4 -> 2 -> 1 (no lane is NaN).
-        let [lo, hi]: [f32x4; 2] = bytemuck::cast(self.t);
-        let [a, b, c, d] = lo.fast_min(hi).to_array();
-        let min = |x: f32, y: f32| if x < y { x } else { y };
-        let t = min(min(a, b), min(c, d));
-        let at_min: i32x8 = bytemuck::cast(self.t.simd_eq(f32x8::splat(t)));
-        let index = at_min
-            .select(self.index, i32x8::splat(i32::MAX))
-            .reduce_min();
+        let t = self.t.min_lane();
+        let index = self.t.min_index_at(t, self.index);
         (index != i32::MAX).then_some(Hit {
             triangle: index as u32,
             t,
@@ -289,18 +293,18 @@ impl LaneHits {
     }
 }
 
-impl Triangle8 {
-    /// Pack up to eight triangles with their indices.
+impl<R: Lanes> TrianglePack<R> {
+    /// Pack up to [`Lanes::LANES`] triangles with their indices.
     pub fn pack(tris: &[(u32, TriangleEdges)]) -> Self {
-        assert!(tris.len() <= 8);
+        assert!(tris.len() <= R::LANES);
         let lane = |f: &dyn Fn(&TriangleEdges) -> f32| {
-            f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
-                tris.get(l).map_or(0.0, |(_, t)| f(t))
-            }))
+            let v: Vec<f32> = tris.iter().map(|(_, t)| f(t)).collect();
+            R::from_slice(&v, 0.0)
         };
         let v3 = |g: &dyn Fn(&TriangleEdges) -> Vec3| {
             V3::new(lane(&|t| g(t).x), lane(&|t| g(t).y), lane(&|t| g(t).z))
         };
+        let index: Vec<i32> = tris.iter().map(|(i, _)| *i as i32).collect();
         Self {
             tri: V3Tri {
                 v0: v3(&|t| t.v0),
@@ -308,23 +312,22 @@ impl Triangle8 {
                 e2: v3(&|t| t.e2),
                 n: v3(&|t| t.n),
             },
-            index: i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
-                tris.get(l).map_or(-1, |(i, _)| *i as i32)
-            })),
+            index: R::index_from_slice(&index, -1),
         }
     }
 
-    /// Pack a whole triangle list, eight at a time, in index order.
+    /// Pack a whole triangle list, [`Lanes::LANES`] at a time, in index
+    /// order.
     pub fn pack_all(tris: &[TriangleEdges]) -> Vec<Self> {
         let indexed: Vec<(u32, TriangleEdges)> = tris
             .iter()
             .enumerate()
             .map(|(i, t)| (i as u32, *t))
             .collect();
-        indexed.chunks(8).map(Self::pack).collect()
+        indexed.chunks(R::LANES).map(Self::pack).collect()
     }
 
-    /// Test one ray (broadcast to all lanes) against the eight triangles,
+    /// Test one ray (broadcast to all lanes) against the pack's triangles,
     /// keeping in `best` each lane's smallest `(t, index)`.
     ///
     /// `IN_INDEX_ORDER` says the caller tests packs in increasing index
@@ -334,26 +337,35 @@ impl Triangle8 {
     #[inline(always)]
     pub fn intersect<const IN_INDEX_ORDER: bool>(
         &self,
-        o: &Vec3x8,
-        d: &Vec3x8,
-        t_min: f32x8,
-        best: &mut LaneHits,
+        o: &V3<R>,
+        d: &V3<R>,
+        t_min: R,
+        best: &mut PackHits<R>,
     ) {
         let (inside, t) = moller_trumbore(*o, *d, &self.tri, t_min);
         let closer = if IN_INDEX_ORDER {
-            inside & t.simd_lt(best.t)
+            inside & t.lt(best.t)
         } else {
-            let idx_lt: f32x8 = bytemuck::cast(self.index.simd_lt(best.index));
-            inside & (t.simd_lt(best.t) | (t.simd_eq(best.t) & idx_lt))
+            let idx_lt = R::index_lt(self.index, best.index);
+            inside & (t.lt(best.t) | (t.eq(best.t) & idx_lt))
         };
-        best.t = closer.select(t, best.t);
-        best.index = bytemuck::cast::<f32x8, i32x8>(closer).select(self.index, best.index);
+        best.t = R::select(closer, t, best.t);
+        best.index = R::index_select(closer, self.index, best.index);
+    }
+
+    /// Whether the ray hits one of the pack's triangles at a distance
+    /// `t_min < t < t_max`: the same test, lane for lane, as
+    /// [`TrianglePack::intersect`] with `best.t = t_max`.
+    #[inline(always)]
+    pub fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
+        let (inside, t) = moller_trumbore(*o, *d, &self.tri, t_min);
+        R::any(inside & t.lt(t_max))
     }
 }
 
 /// Closest hit of one ray against packed triangles, 8 lanes at a time, the
-/// packs in increasing index order (as [`Triangle8::pack_all`] makes them).
-/// Returns the same triangle and the same `t` as
+/// packs in increasing index order (as [`TrianglePack::pack_all`] makes
+/// them). Returns the same triangle and the same `t` as
 /// [`closest_hit_brute_force`], bit for bit.
 pub fn closest_hit_packs(
     packs: &[Triangle8],

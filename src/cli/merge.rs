@@ -3,7 +3,7 @@
 use crate::error::Result;
 use crate::fs::check_writable;
 use crate::output::{check_output_format, check_partial_path, write_output};
-use crate::run::merge::merge_files;
+use crate::run::merge::{check_outputs, merge_files};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -35,6 +35,11 @@ pub struct MergeArgs {
 
 /// Run `wavetrace merge`: check the outputs, merge, then write.
 pub fn run(args: MergeArgs) -> Result<()> {
+    let mut outputs = vec![("--out", args.out.as_path())];
+    if let Some(p) = &args.partial {
+        outputs.push(("--partial", p.as_path()));
+    }
+    check_outputs(&args.parts, &outputs)?;
     check_output_format(&args.out)?;
     check_writable(&args.out)?;
     if let Some(p) = &args.partial {

@@ -1,5 +1,6 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
+use crate::accel::simd::SimdWidth;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
@@ -56,7 +57,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = named(Integrator::NAMES, Integrator::from_name))]
     pub integrator: Option<Integrator>,
     /// Where the numbers come from: independent (PCG streams) or sobol
-    /// (Owen-scrambled Sobol points).
+    /// (Owen-scrambled Sobol points) [default: sobol].
     #[arg(long, value_parser = named(SamplerKind::NAMES, SamplerKind::from_name))]
     pub sampler: Option<SamplerKind>,
     /// Russian roulette may end paths at vertices of this depth and deeper
@@ -64,6 +65,11 @@ pub struct RenderArgs {
     /// --integrator report.
     #[arg(long, value_name = "D")]
     pub rr_depth: Option<u32>,
+    /// Lanes of the intersection kernels: 8 (AVX2) or 16 (AVX-512, where
+    /// the CPU has it) [default: the widest this CPU runs, or the
+    /// environment variable WAVETRACE_SIMD]. Never changes the image.
+    #[arg(long, value_name = "LANES", value_parser = parse_simd)]
+    pub simd: Option<SimdWidth>,
     /// Paths per wavefront batch [default: 4096]. A tuning knob for
     /// benchmarks: it never changes the image.
     #[arg(long, value_name = "PATHS")]
@@ -123,6 +129,14 @@ fn named<T: Clone + Send + Sync + 'static>(
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(names)
         .map(move |name: String| from_name(&name).expect("one of the possible values"))
+}
+
+/// `8` or `16` lanes.
+fn parse_simd(text: &str) -> std::result::Result<SimdWidth, String> {
+    text.parse()
+        .ok()
+        .and_then(SimdWidth::from_lanes)
+        .ok_or_else(|| format!("{text:?}: the kernels run 8 or 16 lanes"))
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
@@ -230,7 +244,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let env = |name: &str| std::env::var(name).ok();
     settings.threads = match args.threads {
         Some(threads) => threads,
-        None => crate::run::shard::threads_from_env(&env)?.unwrap_or(settings.threads),
+        None => match crate::run::shard::threads_from_env(&env)? {
+            Some(n) if n > crate::render::MAX_THREADS => {
+                return Err(Error::Settings(format!(
+                    "environment variable SLURM_CPUS_PER_TASK is {n}: more than the {} worker threads a render may start; pass --threads N",
+                    crate::render::MAX_THREADS
+                )));
+            }
+            n => n.unwrap_or(settings.threads),
+        },
     };
     settings.engine = args.engine.or(profile_engine).unwrap_or(settings.engine);
     let named = |name: &Option<String>, what: &str, known: &[&str]| match name {
@@ -251,7 +273,11 @@ fn plan(args: RenderArgs) -> Result<Job> {
     settings.sampler = args.sampler.or(profile_sampler).unwrap_or(settings.sampler);
     settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
+    settings.simd = args.simd.unwrap_or(settings.simd);
+    settings.memory_limit = memory_limit_from_env(&env)?;
     settings.validate()?;
+    // Before anything of the render's size is allocated (and for --check).
+    settings.check_memory(scene.triangles.len())?;
     let work = args.farm.request().resolve(settings.spp, &env)?;
     let partial = args.farm.partial.clone();
     if work.range != (0..settings.spp) && args.out.is_none() && partial.is_none() {
@@ -402,6 +428,39 @@ fn plan(args: RenderArgs) -> Result<Job> {
     })
 }
 
+/// `WAVETRACE_MAX_MEMORY`: the most memory a render may need, in bytes,
+/// or with a binary suffix (`512M`, `16G`, `1T`); unset: the system's.
+fn memory_limit_from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Option<u64>> {
+    let Some(text) = env("WAVETRACE_MAX_MEMORY") else {
+        return Ok(None);
+    };
+    let t = text.trim();
+    let (digits, shift) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let shift = match c.to_ascii_uppercase() {
+                'K' => 10,
+                'M' => 20,
+                'G' => 30,
+                'T' => 40,
+                _ => 64,
+            };
+            (&t[..i], shift)
+        }
+        _ => (t, 0),
+    };
+    digits
+        .parse::<u64>()
+        .ok()
+        .filter(|_| shift < 64)
+        .and_then(|n| n.checked_mul(1u64 << shift))
+        .map(Some)
+        .ok_or_else(|| {
+            Error::Settings(format!(
+                "environment variable WAVETRACE_MAX_MEMORY is {text:?}: expected a number of bytes, optionally with K, M, G or T"
+            ))
+        })
+}
+
 /// Refuse two outputs that name the same file: one would overwrite the
 /// other (a checkpoint overwritten by the stats, say).
 fn check_distinct(files: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
@@ -549,6 +608,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         git_commit: crate::cli::stats::GIT_COMMIT,
         cpu_model: crate::cli::stats::cpu_model(),
         simd: crate::cli::stats::SIMD,
+        kernel_lanes: s.simd.lanes(),
         scene: job.scene.name.clone(),
         width: s.width,
         height: s.height,
@@ -620,7 +680,7 @@ fn describe(job: &Job) -> String {
         None => String::new(),
     };
     format!(
-        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine{resume} -> {}",
+        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine, {}-lane kernels{resume} -> {}",
         job.scene.name,
         s.width,
         s.height,
@@ -634,6 +694,7 @@ fn describe(job: &Job) -> String {
         s.seed,
         s.threads,
         s.engine.name(),
+        s.simd.lanes(),
         outputs(job)
     )
 }

@@ -16,6 +16,9 @@ pub struct RenderStats {
     pub cpu_model: String,
     /// The SIMD instruction set the build uses ([`SIMD`]).
     pub simd: &'static str,
+    /// Lanes of the intersection kernels that ran: 8 (AVX2) or 16
+    /// (AVX-512, chosen at run time).
+    pub kernel_lanes: usize,
     /// Scene name.
     pub scene: String,
     /// Image width in pixels.

@@ -76,23 +76,29 @@ impl Film {
     /// Record that every pixel now also holds the samples in `range`.
     /// Adjacent ranges are joined. Panics if `range` overlaps what is held.
     pub fn add_range(&mut self, range: Range<u32>) {
+        if range.is_empty() {
+            return;
+        }
+        // The first held range that ends after `range` starts: the only one
+        // it can overlap (held ranges are sorted and disjoint).
+        let at = self.ranges.partition_point(|r| r.end <= range.start);
         assert!(
-            self.ranges
-                .iter()
-                .all(|r| range.end <= r.start || r.end <= range.start),
+            self.ranges.get(at).is_none_or(|r| range.end <= r.start),
             "sample range {range:?} overlaps {:?}",
             self.ranges
         );
-        self.ranges.push(range);
-        self.ranges.sort_by_key(|r| r.start);
-        let mut joined: Vec<Range<u32>> = Vec::with_capacity(self.ranges.len());
-        for r in self.ranges.drain(..) {
-            match joined.last_mut() {
-                Some(last) if last.end == r.start => last.end = r.end,
-                _ => joined.push(r),
-            }
+        self.ranges.insert(at, range);
+        // Join with the next range, then with the previous one.
+        if let Some(next) = self.ranges.get(at + 1).cloned()
+            && self.ranges[at].end == next.start
+        {
+            self.ranges[at].end = next.end;
+            self.ranges.remove(at + 1);
         }
-        self.ranges = joined;
+        if at > 0 && self.ranges[at - 1].end == self.ranges[at].start {
+            self.ranges[at - 1].end = self.ranges[at].end;
+            self.ranges.remove(at);
+        }
     }
 
     /// The mean radiance of every pixel, row-major, as linear RGB `f32`.
@@ -117,27 +123,22 @@ impl Film {
                 ours: (self.width, self.height),
             });
         }
-        for theirs in &other.ranges {
-            if let Some(ours) = self
-                .ranges
-                .iter()
-                .find(|r| theirs.start < r.end && r.start < theirs.end)
-            {
-                return Err(MergeError::Overlap {
-                    theirs: theirs.clone(),
-                    ours: ours.clone(),
-                });
-            }
+        if let Some((theirs, ours)) = ranges::first_overlap(&other.ranges, &self.ranges) {
+            return Err(MergeError::Overlap { theirs, ours });
         }
         for (a, b) in self.sums.iter_mut().zip(&other.sums) {
             for (x, y) in a.iter_mut().zip(b) {
                 *x += y;
             }
         }
-        for r in &other.ranges {
-            self.add_range(r.clone());
-        }
-        self.invalid_samples += other.invalid_samples;
+        let all: Vec<[u32; 2]> = self
+            .ranges
+            .iter()
+            .chain(&other.ranges)
+            .map(|r| [r.start, r.end])
+            .collect();
+        self.ranges = ranges::sorted_disjoint(&all).expect("checked disjoint above");
+        self.invalid_samples = self.invalid_samples.saturating_add(other.invalid_samples);
         Ok(())
     }
 }

@@ -56,6 +56,48 @@ impl fmt::Display for MissingSamples {
     }
 }
 
+/// The ranges `[start, end]` (in any order) as sorted, disjoint ranges,
+/// adjacent ones joined; or the first (in sorted order) that is empty or
+/// overlaps another. O(n log n), so a file of very many ranges loads fast.
+pub fn sorted_disjoint(ranges: &[[u32; 2]]) -> Result<Vec<Range<u32>>, [u32; 2]> {
+    let mut sorted = ranges.to_vec();
+    sorted.sort_unstable();
+    let mut joined: Vec<Range<u32>> = Vec::with_capacity(sorted.len());
+    for [a, b] in sorted {
+        if a >= b {
+            return Err([a, b]);
+        }
+        match joined.last_mut() {
+            Some(last) if a < last.end => return Err([a, b]),
+            Some(last) if a == last.end => last.end = b,
+            _ => joined.push(a..b),
+        }
+    }
+    Ok(joined)
+}
+
+/// The first range of the sorted, disjoint `theirs` that overlaps one of
+/// the sorted, disjoint `ours`, with that range: a merge of the two, in
+/// O(n + m).
+pub fn first_overlap(
+    theirs: &[Range<u32>],
+    ours: &[Range<u32>],
+) -> Option<(Range<u32>, Range<u32>)> {
+    let (mut i, mut j) = (0, 0);
+    while i < theirs.len() && j < ours.len() {
+        let (t, o) = (&theirs[i], &ours[j]);
+        if t.start < o.end && o.start < t.end {
+            return Some((t.clone(), o.clone()));
+        }
+        if t.end <= o.start {
+            i += 1;
+        } else {
+            j += 1;
+        }
+    }
+    None
+}
+
 /// The parts of `0..spp` that the sorted, disjoint `ranges` do not cover.
 pub fn missing_ranges(ranges: &[Range<u32>], spp: u32) -> Vec<Range<u32>> {
     let mut missing = Vec::new();

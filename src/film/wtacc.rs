@@ -75,20 +75,31 @@ impl Film {
             path: path.to_path_buf(),
             message,
         };
+        let mut file = std::fs::File::open(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+        // Read whole (it is checked whole): refused if it cannot fit.
+        let size = file.metadata().map_or(0, |m| m.len());
+        if let Some(memory) = crate::fs::system_memory()
+            && size > memory / 2
+        {
+            return Err(bad(format!(
+                "{size} bytes: too large to load in this system's memory ({memory} bytes)"
+            )));
+        }
         let mut bytes = Vec::new();
-        std::fs::File::open(path)
-            .and_then(|mut f| f.read_to_end(&mut bytes))
+        file.read_to_end(&mut bytes)
             .map_err(|e| bad(format!("cannot read: {e}")))?;
         if bytes.len() < ACC_MAGIC.len() + 8 + 16 || &bytes[..8] != ACC_MAGIC {
             return Err(bad("not a wavetrace accumulation file".into()));
         }
         let (body, check) = bytes.split_at(bytes.len() - 16);
-        if xxhash_rust::xxh3::xxh3_128(body) != u128::from_le_bytes(check.try_into().unwrap()) {
+        let check: [u8; 16] = check.try_into().unwrap_or_default();
+        if xxhash_rust::xxh3::xxh3_128(body) != u128::from_le_bytes(check) {
             return Err(bad(
                 "checksum mismatch: the file is truncated or corrupt".into()
             ));
         }
-        let header_len = u64::from_le_bytes(body[8..16].try_into().unwrap()) as usize;
+        let header_len = u64::from_le_bytes(body[8..16].try_into().unwrap_or_default());
+        let header_len = usize::try_from(header_len).unwrap_or(usize::MAX);
         let header_bytes = body
             .get(16..16usize.saturating_add(header_len))
             .ok_or_else(|| bad("truncated header".into()))?;
@@ -110,34 +121,58 @@ impl Film {
                     .into(),
             ));
         }
-        let pixels = header.width as usize * header.height as usize;
+        // The size is checked against the data before anything of that
+        // size is allocated: a forged header cannot make wavetrace allocate
+        // more than the file holds.
+        if header.width == 0 || header.height == 0 {
+            return Err(bad(format!(
+                "the image is {}x{}: width and height must be at least 1",
+                header.width, header.height
+            )));
+        }
         let data = &body[16 + header_len..];
-        if data.len() != pixels * 48 {
+        let expected = (header.width as u64)
+            .checked_mul(header.height as u64)
+            .and_then(|n| n.checked_mul(48));
+        if expected != Some(data.len() as u64) {
             return Err(bad(format!(
                 "holds {} bytes of sums, expected {} for {}x{}",
                 data.len(),
-                pixels * 48,
+                expected.map_or("more than 2^64".into(), |n| n.to_string()),
                 header.width,
                 header.height
             )));
         }
-        let sums = data
-            .chunks_exact(48)
-            .map(|p| {
-                std::array::from_fn(|c| {
-                    u128::from_le_bytes(p[c * 16..c * 16 + 16].try_into().unwrap())
-                })
-            })
-            .collect();
-        let mut film = Film::new(header.width, header.height);
-        film.sums = sums;
-        film.invalid_samples = header.invalid_samples;
-        for [a, b] in header.ranges {
-            if a >= b || film.ranges.iter().any(|r| a < r.end && r.start < b) {
-                return Err(bad(format!("bad sample range {a}..{b}")));
+        let ranges = super::ranges::sorted_disjoint(&header.ranges)
+            .map_err(|[a, b]| bad(format!("bad sample range {a}..{b}")))?;
+        let held: u64 = ranges.iter().map(|r| (r.end - r.start) as u64).sum();
+        // No sample adds 2^63 or more to a sum (see `accumulate`), so a
+        // pixel of `held` samples sums to less than held * 2^63: a larger
+        // sum is forged, and refusing it keeps every later addition of
+        // sums (merges, resumed renders) from overflowing.
+        let most = (held as u128) << 63;
+        let mut sums = Vec::with_capacity(data.len() / 48);
+        for (i, p) in data.chunks_exact(48).enumerate() {
+            let sum: super::PixelSum = std::array::from_fn(|c| {
+                u128::from_le_bytes(p[c * 16..c * 16 + 16].try_into().unwrap_or([0; 16]))
+            });
+            if sum.iter().any(|&c| c > most) {
+                let w = header.width as usize;
+                return Err(bad(format!(
+                    "pixel ({}, {}) holds a sum larger than its {held} sample(s) can make",
+                    i % w,
+                    i / w
+                )));
             }
-            film.add_range(a..b);
+            sums.push(sum);
         }
+        let film = Film {
+            width: header.width,
+            height: header.height,
+            sums,
+            ranges,
+            invalid_samples: header.invalid_samples,
+        };
         if let Some(spp) = header.spp
             && let Some(last) = film.ranges.last()
             && last.end > spp
@@ -148,7 +183,7 @@ impl Film {
             )));
         }
         if let Some([i, n]) = header.shard
-            && i >= n
+            && (i >= n || header.spp.is_some_and(|spp| n > spp))
         {
             return Err(bad(format!("bad shard {i}/{n}")));
         }

@@ -77,6 +77,8 @@ pub enum Stage {
     Shade,
     /// Finished paths added to the film, and dropped from the queue.
     Retire,
+    /// The live paths grouped by material model.
+    Sort,
     /// Next-event estimation: points on emitters, and shadow rays to them.
     Light,
     /// Occlusion of the shadow rays; the light of those that arrive.
@@ -87,11 +89,12 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in order.
-    pub const ALL: [Stage; 7] = [
+    pub const ALL: [Stage; 8] = [
         Stage::Generate,
         Stage::Intersect,
         Stage::Shade,
         Stage::Retire,
+        Stage::Sort,
         Stage::Light,
         Stage::Shadow,
         Stage::Bounce,
@@ -104,6 +107,7 @@ impl Stage {
             Stage::Intersect => "intersect",
             Stage::Shade => "shade",
             Stage::Retire => "retire",
+            Stage::Sort => "sort",
             Stage::Light => "light",
             Stage::Shadow => "shadow",
             Stage::Bounce => "bounce",

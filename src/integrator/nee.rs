@@ -4,7 +4,7 @@
 //! Russian roulette. Each is one scalar function, called by both engines,
 //! so the two compute the same terms.
 
-use super::bsdf::diffuse;
+use super::bsdf::Surface;
 use super::lights::{LightPoint, Lights, power_heuristic};
 use super::sampler::Sampler;
 use crate::math::{Real, V3};
@@ -89,6 +89,13 @@ impl Estimator {
         sampler.next_2d(path)
     }
 
+    /// Skip the vertex's light-sampling numbers: a delta surface takes no
+    /// shadow ray, and its numbers keep their dimensions.
+    #[inline]
+    pub fn skip_light_numbers<S: Sampler>(&self, sampler: &S, path: &mut S::Path) {
+        sampler.skip(path, 3);
+    }
+
     /// [`light_numbers`](Self::light_numbers) of up to eight paths, one per
     /// lane.
     #[inline]
@@ -156,20 +163,20 @@ pub struct ShadowRay<R> {
     pub radiance: V3<R>,
 }
 
-/// Next-event estimation at a diffuse vertex `p` whose normal facing the
-/// incoming ray is `n` and whose BRDF is `f = ρ/π`, towards the point
-/// `light` on an emitter: the shadow ray, weighted against cosine-weighted
-/// BSDF sampling by the power heuristic, and whether light can arrive at
-/// all (not when the emitter's back faces `p`, nor when the point lies
-/// below the surface or within `epsilon` of `p`). Written once for one
-/// lane and for eight, so both engines compute the same bits.
+/// Next-event estimation at a non-delta vertex `p` of `surface`, whose
+/// normal facing the incoming ray is `n` and whose outgoing direction is
+/// `wo`, towards the point `light` on an emitter: the shadow ray, weighted
+/// against the surface's own direction sampling by the power heuristic,
+/// and whether light can arrive at all (not when the emitter's back faces
+/// `p`, nor when the surface does not scatter towards it, nor when the
+/// point lies within `epsilon` of `p`). Written once for one lane and for
+/// eight, so both engines compute the same bits.
 #[inline(always)]
 pub fn connect<R: Real>(
     light: &LightPoint<R>,
     epsilon: R,
-    p: V3<R>,
-    n: V3<R>,
-    f: V3<R>,
+    (p, n, wo): (V3<R>, V3<R>, V3<R>),
+    surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
     let zero = R::splat(0.0);
     let to = light.point - p;
@@ -179,10 +186,10 @@ pub fn connect<R: Real>(
     // Emission is one-sided: the emitter's front must face the vertex.
     let cos_light = -light.normal.dot(dir);
     let t_max = dist - epsilon;
-    let (fcos, cos) = diffuse::eval(n, f, dir);
+    let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir);
     let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos);
     let pdf_light = light.pdf_area * dist2 / cos_light;
-    let w = power_heuristic(pdf_light, diffuse::pdf_cosine(n, dir));
+    let w = power_heuristic(pdf_light, pdf_bsdf);
     let scale = w / pdf_light;
     let radiance = V3::new(
         fcos.x * light.emission.x * scale,

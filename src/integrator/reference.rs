@@ -26,15 +26,14 @@
 use crate::accel::bvh::Bvh;
 use crate::accel::triangle::{Hit, TriangleEdges, closest_hit_brute_force, hit_point};
 use crate::film::accumulate;
-use crate::integrator::bsdf::{diffuse, facing};
+use crate::integrator::bsdf::{Surface, facing};
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, connect, emission_weight, survival as survival_of};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
-use crate::scene::Integrator;
-use crate::scene::Scene;
 use crate::scene::camera::RasterCamera;
+use crate::scene::{Integrator, Material, Model, Scene};
 use glam::Vec3;
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -121,6 +120,20 @@ impl ReferenceTracer {
         }
     }
 
+    /// The scattering of `material`, for one lane.
+    fn surface(&self, material: &Material) -> Surface<f32> {
+        Surface {
+            model: material.model,
+            tint: V3::from(match material.model {
+                Model::Diffuse => material.reflectance / PI,
+                Model::Mirror | Model::Metal => material.reflectance,
+                Model::Glass => material.transmittance,
+            }),
+            alpha: material.alpha,
+            ior: material.ior,
+        }
+    }
+
     /// The radiance arriving at `o` from direction `-d`, for a ray at
     /// `depth` (camera rays are depth 0), with the path's numbers drawn
     /// from `sampler` at `path`. `counters` counts the rays cast.
@@ -172,7 +185,7 @@ impl ReferenceTracer {
         }
 
         let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-        let brdf = material.reflectance / PI;
+        let surface = self.surface(material);
         let mut beta = beta;
         let mut survival = 1.0;
         if let Some(u) = est.roulette_number(sampler, path, depth) {
@@ -182,11 +195,13 @@ impl ReferenceTracer {
             }
             beta /= survival;
         }
-        if est.samples_lights() {
+        if est.samples_lights() && material.model.is_delta() {
+            est.skip_light_numbers(sampler, path);
+        } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);
             if let Some(light) = self.lights.sample(u) {
-                let (valid, shadow) =
-                    connect(&light, self.epsilon, V3::from(p), normal, V3::from(brdf));
+                let vertex = (V3::from(p), normal, V3::from(-d));
+                let (valid, shadow) = connect(&light, self.epsilon, vertex, &surface);
                 if valid {
                     counters.rays += 1;
                     counters.shadow_rays += 1;
@@ -198,17 +213,18 @@ impl ReferenceTracer {
             }
         }
         let (_lobe, u) = est.bsdf_numbers(sampler, path);
-        let s = match est.integrator {
-            Integrator::Report => diffuse::sample_uniform(normal, V3::from(brdf), u),
-            Integrator::Bsdf | Integrator::Nee => diffuse::sample_cosine(normal, V3::from(brdf), u),
-        };
+        let report = est.integrator == Integrator::Report;
+        let s = surface.sample(V3::from(triangle.normal), V3::from(d), u, report);
+        // A delta direction has no density: light sampling could not have
+        // found what it hits (MIS weight 1).
+        let pdf = if s.delta { 0.0 } else { s.pdf };
         let next_beta = Vec3::from(s.weigh(V3::from(beta)));
         let incoming = self.trace(
             sampler,
             path,
             (p, Vec3::from(s.wi)),
             depth + 1,
-            (s.pdf, next_beta),
+            (pdf, next_beta),
             counters,
         );
         radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival

@@ -83,11 +83,11 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
                 _ => {}
             }
         }
+        // `origins` is sorted by start and disjoint, so the one range a
+        // range can overlap first is found by binary search.
         for r in &film.ranges {
-            if let Some(&(ref other, from)) = origins
-                .iter()
-                .find(|(o, _)| r.start < o.end && o.start < r.end)
-            {
+            let at = origins.partition_point(|(o, _)| o.end <= r.start);
+            if let Some(&(ref other, from)) = origins.get(at).filter(|(o, _)| o.start < r.end) {
                 return Err(bad(format!(
                     "samples {}..{} overlap samples {}..{} of {} (was a part given twice, or are shards of different counts mixed?)",
                     r.start,
@@ -99,6 +99,7 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
             }
         }
         origins.extend(film.ranges.iter().map(|r| (r.clone(), path.as_path())));
+        origins.sort_unstable_by_key(|(r, _)| r.start);
         match &mut merged {
             None => merged = Some((film, meta)),
             Some((total, _)) => {
@@ -132,19 +133,14 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
     }
     let missing = missing_ranges(&film.ranges, spp);
     let missing = (!missing.is_empty()).then(|| {
-        let missing_shards = shard_count.map_or_else(Vec::new, |n| {
-            (0..n)
-                .filter(|&i| {
-                    crate::run::shard::shard_range(i, n, spp)
-                        .is_ok_and(|r| missing.iter().any(|m| m.start < r.end && r.start < m.end))
-                })
-                .collect()
-        });
+        // Listed only while the list is short enough to act on; a longer
+        // one (a forged shard count, say) gives the sample ranges alone.
+        let missing_shards = shard_count.and_then(|n| missing_shards(&missing, n, spp));
         MissingSamples {
             spp,
             missing,
-            shard_count,
-            missing_shards,
+            shard_count: missing_shards.as_ref().and(shard_count),
+            missing_shards: missing_shards.unwrap_or_default(),
         }
     });
     if let Some(m) = &missing
@@ -162,4 +158,64 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
         meta,
         missing,
     })
+}
+
+/// Refuse, before any work, outputs that would overwrite one of the
+/// `parts` being merged, or each other: `outputs` are each a label for
+/// the error (such as `--out`) and a path.
+pub fn check_outputs(parts: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()> {
+    for (i, (label, out)) in outputs.iter().enumerate() {
+        if let Some(part) = parts.iter().find(|p| crate::fs::same_file(p, out)) {
+            return Err(Error::Settings(format!(
+                "{}: {label} names the input {}; the merge would overwrite one of its parts",
+                out.display(),
+                part.display()
+            )));
+        }
+        if let Some((other, _)) = outputs[i + 1..]
+            .iter()
+            .find(|(_, p)| crate::fs::same_file(p, out))
+        {
+            return Err(Error::Settings(format!(
+                "{}: {label} and {other} name the same file; one would overwrite the other",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The most missing shards a merge lists (as Slurm array task IDs).
+pub const MAX_LISTED_SHARDS: usize = 10_000;
+
+/// The shards of `count` over `0..spp` that hold some of the `missing`
+/// samples (sorted, disjoint), in order; `None` when there are more than
+/// [`MAX_LISTED_SHARDS`] or the count is impossible. Time is bounded by
+/// the length of the list, not by `count`.
+fn missing_shards(missing: &[Range<u32>], count: u32, spp: u32) -> Option<Vec<u32>> {
+    if count == 0 || count > spp {
+        return None;
+    }
+    let start_of = |i: u32| (i as u64 * spp as u64 / count as u64) as u32;
+    let mut shards: Vec<u32> = Vec::new();
+    for m in missing {
+        // The shard holding sample m.start: the last i with start_of(i) <= m.start.
+        let mut i = (m.start as u64 * count as u64 / spp as u64) as u32;
+        while i > 0 && start_of(i) > m.start {
+            i -= 1;
+        }
+        while i + 1 < count && start_of(i + 1) <= m.start {
+            i += 1;
+        }
+        while i < count && start_of(i) < m.end {
+            if shards.last() != Some(&i) {
+                if shards.len() == MAX_LISTED_SHARDS {
+                    return None;
+                }
+                shards.push(i);
+            }
+            i += 1;
+        }
+    }
+    Some(shards)
 }

@@ -62,12 +62,64 @@ struct SceneFile {
     generated: Vec<Spanned<GenerateFile>>,
 }
 
+/// A TOML array of exactly `N` elements: serde's arrays read the first `N`
+/// and would let a typo's extra component (`[10, 10, 10, -1]`) pass
+/// unseen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Exact<A>(A);
+
+impl<'de> Deserialize<'de> for Exact<f32> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        f32::deserialize(d).map(Exact)
+    }
+}
+
+impl<'de, T: Copy + Default, const N: usize> Deserialize<'de> for Exact<[T; N]>
+where
+    Exact<T>: Deserialize<'de>,
+{
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit<T, const N: usize>(std::marker::PhantomData<T>);
+        impl<'de, T: Copy + Default, const N: usize> serde::de::Visitor<'de> for Visit<T, N>
+        where
+            Exact<T>: Deserialize<'de>,
+        {
+            type Value = [T; N];
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "an array of {N} numbers")
+            }
+            fn visit_seq<S: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: S,
+            ) -> Result<[T; N], S::Error> {
+                let mut out = [T::default(); N];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq
+                        .next_element::<Exact<T>>()?
+                        .ok_or_else(|| serde::de::Error::invalid_length(i, &self))?
+                        .0;
+                }
+                let mut n = N;
+                while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+                    n += 1;
+                }
+                if n != N {
+                    return Err(serde::de::Error::invalid_length(n, &self));
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_seq(Visit::<T, N>(std::marker::PhantomData))
+            .map(Exact)
+    }
+}
+
 /// A uniform or per-axis scale.
 #[derive(Deserialize, Clone, Copy)]
 #[serde(untagged)]
 enum ScaleFile {
     Uniform(f32),
-    PerAxis([f32; 3]),
+    PerAxis(Exact<[f32; 3]>),
 }
 
 #[derive(Deserialize)]
@@ -81,8 +133,8 @@ struct MeshFile {
     mtl: Option<Spanned<bool>>,
     front_face: Option<Spanned<String>>,
     scale: Option<Spanned<ScaleFile>>,
-    rotate_deg: Option<Spanned<[f32; 3]>>,
-    translate: Option<Spanned<[f32; 3]>>,
+    rotate_deg: Option<Spanned<Exact<[f32; 3]>>>,
+    translate: Option<Spanned<Exact<[f32; 3]>>>,
 }
 
 #[derive(Deserialize)]
@@ -93,26 +145,31 @@ struct GenerateFile {
     kind: Spanned<String>,
     triangles: Spanned<u64>,
     material: Spanned<String>,
-    center: Option<Spanned<[f32; 3]>>,
+    center: Option<Spanned<Exact<[f32; 3]>>>,
     radius: Option<Spanned<f32>>,
-    size: Option<Spanned<[f32; 2]>>,
+    size: Option<Spanned<Exact<[f32; 2]>>>,
     height: Option<Spanned<f32>>,
     seed: Option<Spanned<u64>>,
     scale: Option<Spanned<ScaleFile>>,
-    rotate_deg: Option<Spanned<[f32; 3]>>,
-    translate: Option<Spanned<[f32; 3]>>,
+    rotate_deg: Option<Spanned<Exact<[f32; 3]>>>,
+    translate: Option<Spanned<Exact<[f32; 3]>>>,
 }
 
 /// The most triangles one `[[generate]]` entry may ask for.
 pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
 
+/// The most triangles a scene may have, all entries together: checked
+/// before each mesh is added and each `[[generate]]` entry is made, so a
+/// file of many large entries is refused before it fills the memory.
+pub const MAX_SCENE_TRIANGLES: usize = 100_000_000;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraFile {
-    position: Spanned<[f32; 3]>,
-    forward: Option<Spanned<[f32; 3]>>,
-    look_at: Option<Spanned<[f32; 3]>>,
-    up: Spanned<[f32; 3]>,
+    position: Spanned<Exact<[f32; 3]>>,
+    forward: Option<Spanned<Exact<[f32; 3]>>>,
+    look_at: Option<Spanned<Exact<[f32; 3]>>>,
+    up: Spanned<Exact<[f32; 3]>>,
     focal_length_px: Option<Spanned<f32>>,
     vfov_deg: Option<Spanned<f32>>,
     width: Spanned<u32>,
@@ -149,9 +206,16 @@ fn default_max_depth() -> Spanned<u32> {
 struct MaterialFile {
     #[serde(default)]
     model: Option<Spanned<String>>,
-    reflectance: Spanned<[f32; 3]>,
     #[serde(default)]
-    emission: Option<Spanned<[f32; 3]>>,
+    reflectance: Option<Spanned<Exact<[f32; 3]>>>,
+    #[serde(default)]
+    emission: Option<Spanned<Exact<[f32; 3]>>>,
+    #[serde(default)]
+    ior: Option<Spanned<f32>>,
+    #[serde(default)]
+    transmittance: Option<Spanned<Exact<[f32; 3]>>>,
+    #[serde(default)]
+    alpha: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -160,7 +224,7 @@ struct TriangleFile {
     #[allow(dead_code)] // a label for people reading the file
     name: Option<String>,
     material: Spanned<String>,
-    vertices: Spanned<[[f32; 3]; 3]>,
+    vertices: Spanned<Exact<[[f32; 3]; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -169,7 +233,7 @@ struct QuadFile {
     #[allow(dead_code)] // a label for people reading the file
     name: Option<String>,
     material: Spanned<String>,
-    vertices: Spanned<[[f32; 3]; 4]>,
+    vertices: Spanned<Exact<[[f32; 3]; 4]>>,
 }
 
 /// Parse scene text; `file` names it in errors.
@@ -212,8 +276,8 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
 
     // Camera.
     let cam = raw.camera.get_ref();
-    let vec = |s: &Spanned<[f32; 3]>, field: &str| -> Result<Vec3, SceneError> {
-        let v = Vec3::from_array(*s.get_ref());
+    let vec = |s: &Spanned<Exact<[f32; 3]>>, field: &str| -> Result<Vec3, SceneError> {
+        let v = Vec3::from_array(s.get_ref().0);
         if v.is_finite() {
             Ok(v)
         } else {
@@ -283,26 +347,6 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let mut index = BTreeMap::new();
     for (name, m) in &raw.materials {
         let m_ref = m.get_ref();
-        let field = format!("materials.{name}.reflectance");
-        let reflectance = vec(&m_ref.reflectance, &field)?;
-        if reflectance.min_element() < 0.0 || reflectance.max_element() > 1.0 {
-            return Err(at(
-                m_ref.reflectance.span(),
-                &field,
-                "each component must be in [0, 1]".into(),
-            ));
-        }
-        let emission = match &m_ref.emission {
-            None => Vec3::ZERO,
-            Some(e) => {
-                let field = format!("materials.{name}.emission");
-                let v = vec(e, &field)?;
-                if v.min_element() < 0.0 {
-                    return Err(at(e.span(), &field, "must not be negative".into()));
-                }
-                v
-            }
-        };
         let model = match &m_ref.model {
             None => Model::Diffuse,
             Some(model) => match Model::from_name(model.get_ref()) {
@@ -320,13 +364,98 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 }
             },
         };
-        index.insert(name.clone(), materials.len() as u32);
-        materials.push(Material {
-            name: name.clone(),
+        // A field the model does not read is refused, not ignored.
+        let unused =
+            |present: Option<std::ops::Range<usize>>, key: &str, models: &str| match present {
+                Some(span) => Err(at(
+                    span,
+                    &format!("materials.{name}.{key}"),
+                    format!("{} materials have no {key} (only {models})", model.name()),
+                )),
+                None => Ok(()),
+            };
+        let unit_color = |v: &Spanned<Exact<[f32; 3]>>, key: &str| -> Result<Vec3, SceneError> {
+            let field = format!("materials.{name}.{key}");
+            let c = vec(v, &field)?;
+            if c.min_element() < 0.0 || c.max_element() > 1.0 {
+                return Err(at(
+                    v.span(),
+                    &field,
+                    "each component must be in [0, 1]".into(),
+                ));
+            }
+            Ok(c)
+        };
+        let reflectance = match (&m_ref.reflectance, model) {
+            (Some(r), Model::Glass) => {
+                unused(Some(r.span()), "reflectance", "diffuse, mirror and metal")?;
+                Vec3::ONE
+            }
+            (Some(r), _) => unit_color(r, "reflectance")?,
+            (None, Model::Glass) => Vec3::ONE,
+            (None, _) => {
+                return Err(at(
+                    m.span(),
+                    &format!("materials.{name}.reflectance"),
+                    format!("a {} material needs a reflectance", model.name()),
+                ));
+            }
+        };
+        let emission = match &m_ref.emission {
+            None => Vec3::ZERO,
+            Some(e) => {
+                let field = format!("materials.{name}.emission");
+                let v = vec(e, &field)?;
+                if v.min_element() < 0.0 {
+                    return Err(at(e.span(), &field, "must not be negative".into()));
+                }
+                v
+            }
+        };
+        let mut material = Material {
             model,
             reflectance,
             emission,
-        });
+            ..Material::diffuse(name, reflectance, emission)
+        };
+        if model == Model::Glass {
+            if let Some(ior) = &m_ref.ior {
+                let v = *ior.get_ref();
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(at(
+                        ior.span(),
+                        &format!("materials.{name}.ior"),
+                        "must be a positive, finite index of refraction (e.g. 1.5 for glass)"
+                            .into(),
+                    ));
+                }
+                material.ior = v;
+            }
+            if let Some(t) = &m_ref.transmittance {
+                material.transmittance = unit_color(t, "transmittance")?;
+            }
+        } else {
+            unused(m_ref.ior.as_ref().map(|v| v.span()), "ior", "glass")?;
+            let t = m_ref.transmittance.as_ref().map(|v| v.span());
+            unused(t, "transmittance", "glass")?;
+        }
+        if model == Model::Metal {
+            if let Some(alpha) = &m_ref.alpha {
+                let v = *alpha.get_ref();
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(at(
+                        alpha.span(),
+                        &format!("materials.{name}.alpha"),
+                        "must be a GGX roughness in [0, 1] (0: a mirror)".into(),
+                    ));
+                }
+                material.alpha = v;
+            }
+        } else {
+            unused(m_ref.alpha.as_ref().map(|v| v.span()), "alpha", "metal")?;
+        }
+        index.insert(name.clone(), materials.len() as u32);
+        materials.push(material);
     }
 
     // Geometry: triangles, then quads (each split into two triangles).
@@ -342,7 +471,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 format!("triangle[{i}]"),
                 &t.material,
                 t.vertices.span(),
-                v.to_vec(),
+                v.0.to_vec(),
             )
         })
         .chain(raw.quads.iter().enumerate().map(|(i, q)| {
@@ -352,7 +481,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 format!("quad[{i}]"),
                 &q.material,
                 q.vertices.span(),
-                v.to_vec(),
+                v.0.to_vec(),
             )
         }));
     for (what, material, span, verts) in polygons {
@@ -451,6 +580,17 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 message: format!("{} (the mesh of {what}, {file}:{line}:{column})", e.message),
             }
         })?;
+        if triangles.len() + obj.triangles.len() > MAX_SCENE_TRIANGLES {
+            return Err(at(
+                m.file.span(),
+                &what,
+                format!(
+                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this mesh, {} in it)",
+                    triangles.len(),
+                    obj.triangles.len()
+                ),
+            ));
+        }
         // The OBJ's materials become scene materials named "file:name".
         let mut mtl_index = Vec::new();
         for om in &obj.materials {
@@ -487,6 +627,16 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 g.triangles.span(),
                 &format!("{what}.triangles"),
                 format!("must be between 1 and {MAX_GENERATED_TRIANGLES}"),
+            ));
+        }
+        if triangles.len() as u64 + n > MAX_SCENE_TRIANGLES as u64 {
+            return Err(at(
+                g.triangles.span(),
+                &format!("{what}.triangles"),
+                format!(
+                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this entry)",
+                    triangles.len()
+                ),
             ));
         }
         let transform = transform(
@@ -548,7 +698,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                 let size = match &g.size {
                     None => [1.0, 1.0],
                     Some(s) => {
-                        let v = *s.get_ref();
+                        let v = s.get_ref().0;
                         if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
                             return Err(at(
                                 s.span(),
@@ -640,15 +790,15 @@ fn transform(
     at: &impl Fn(std::ops::Range<usize>, &str, String) -> SceneError,
     what: &str,
     scale: Option<&Spanned<ScaleFile>>,
-    rotate_deg: Option<&Spanned<[f32; 3]>>,
-    translate: Option<&Spanned<[f32; 3]>>,
+    rotate_deg: Option<&Spanned<Exact<[f32; 3]>>>,
+    translate: Option<&Spanned<Exact<[f32; 3]>>>,
 ) -> Result<glam::Affine3A, SceneError> {
     let s = match scale {
         None => Vec3::ONE,
         Some(s) => {
             let v = match *s.get_ref() {
                 ScaleFile::Uniform(x) => Vec3::splat(x),
-                ScaleFile::PerAxis(v) => Vec3::from_array(v),
+                ScaleFile::PerAxis(v) => Vec3::from_array(v.0),
             };
             if !v.is_finite() || v.x * v.y * v.z == 0.0 {
                 return Err(at(
@@ -660,11 +810,11 @@ fn transform(
             v
         }
     };
-    let finite = |v: Option<&Spanned<[f32; 3]>>, field: &str| -> Result<Vec3, SceneError> {
+    let finite = |v: Option<&Spanned<Exact<[f32; 3]>>>, field: &str| -> Result<Vec3, SceneError> {
         match v {
             None => Ok(Vec3::ZERO),
-            Some(v) if Vec3::from_array(*v.get_ref()).is_finite() => {
-                Ok(Vec3::from_array(*v.get_ref()))
+            Some(v) if Vec3::from_array(v.get_ref().0).is_finite() => {
+                Ok(Vec3::from_array(v.get_ref().0))
             }
             Some(v) => Err(at(
                 v.span(),

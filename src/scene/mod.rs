@@ -20,16 +20,35 @@ pub use options::{Integrator, RenderOptions, SamplerKind};
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
 
-/// `normalize(a × b)`, or zero when `a` and `b` span no area. Edges so
-/// long that `a × b` overflows are scaled down first (only then, so every
-/// other triangle's normal keeps its bits).
+/// The least `|a × b|`, relative to the longer edge's largest coordinate
+/// squared, of a triangle that is not degenerate: far below what any
+/// triangle of f32 vertices that is not a sliver or collinear has.
+const MIN_RELATIVE_AREA: f32 = 1e-12;
+
+/// `normalize(a × b)`, or zero when `a` and `b` span no area. The test is
+/// relative, so a triangle's size does not matter, only its shape: when
+/// `a × b` overflows or its length underflows (edges longer than about
+/// 10^9 or shorter than about 10^-11), the edges are first scaled so their
+/// largest coordinate is 1, and the triangle is kept if the scaled cross
+/// product is at least [`MIN_RELATIVE_AREA`]. Every other triangle's normal
+/// is computed as before, bit for bit.
 fn unit_normal(a: Vec3, b: Vec3) -> Vec3 {
     let n = a.cross(b);
     if n.is_finite() {
+        let u = n.normalize_or_zero();
+        if u != Vec3::ZERO {
+            return u;
+        }
+    }
+    let m = a.abs().max_element().max(b.abs().max_element());
+    if !(m > 0.0 && m.is_finite()) {
+        return Vec3::ZERO;
+    }
+    let n = (a / m).cross(b / m);
+    if n.is_finite() && n.length() >= MIN_RELATIVE_AREA {
         n.normalize_or_zero()
     } else {
-        let scale = 1.0 / a.abs().max_element().max(b.abs().max_element());
-        (a * scale).cross(b * scale).normalize_or_zero()
+        Vec3::ZERO
     }
 }
 
@@ -146,6 +165,12 @@ impl Scene {
             // from before models existed stay what they were.
             match m.model {
                 Model::Diffuse => {}
+                Model::Mirror => put(Vec3::new(1.0, 0.0, 0.0)),
+                Model::Glass => {
+                    put(Vec3::new(2.0, m.ior, 0.0));
+                    put(m.transmittance);
+                }
+                Model::Metal => put(Vec3::new(3.0, m.alpha, 0.0)),
             }
         }
         for t in &self.triangles {

@@ -5,6 +5,11 @@
 //! coordinate is a finite number, and every face index names a vertex
 //! defined above it. So a bad file gets an error with its own line number,
 //! never a panic and never a silently broken mesh.
+//!
+//! Files need not be UTF-8: exporters write names and comments in Latin-1
+//! and other encodings, so bytes that are not UTF-8 are decoded lossily
+//! (each becomes U+FFFD); numbers and keywords are ASCII either way, and a
+//! `usemtl` name and its `newmtl` decode the same.
 
 use glam::Vec3;
 use std::cell::RefCell;
@@ -56,6 +61,8 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         message,
     };
     let bytes = std::fs::read(path).map_err(|e| err(0, format!("cannot read the mesh: {e}")))?;
+    // Lossy decoding keeps every newline, so line numbers stay the file's.
+    let bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
     precheck_obj(&bytes).map_err(|(line, m)| err(line, m))?;
 
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -130,8 +137,11 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         let mut at = 0usize;
         for n in arities {
             let n = n as usize;
-            let face = m.indices.get(at..at + n).ok_or_else(bad)?;
+            let face = m.indices.get(at..at.saturating_add(n)).ok_or_else(bad)?;
             at += n;
+            if n < 3 {
+                continue; // no area (the precheck refuses a face of no vertices)
+            }
             // Fan from the first vertex: (0, k, k+1).
             let p0 = pos(face[0]).ok_or_else(bad)?;
             for k in 1..n.saturating_sub(1) {
@@ -152,8 +162,7 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
     let (mut v, mut vt, mut vn) = (0usize, 0usize, 0usize);
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line_no = i + 1;
-        let line = std::str::from_utf8(raw)
-            .map_err(|_| (line_no, "the line is not valid UTF-8".to_string()))?;
+        let line = String::from_utf8_lossy(raw);
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
@@ -174,7 +183,9 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
             Some("vt") => vt += 1,
             Some("vn") => vn += 1,
             Some("f") => {
+                let mut corners = 0usize;
                 for corner in words {
+                    corners += 1;
                     for (k, part) in corner.split('/').enumerate() {
                         let (what, count) = match k {
                             0 => ("vertex", v),
@@ -213,6 +224,9 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                         }
                     }
                 }
+                if corners == 0 {
+                    return Err((line_no, "a face (`f`) with no vertices".into()));
+                }
             }
             _ => {}
         }
@@ -229,9 +243,10 @@ fn load_mtl(path: &Path) -> Result<tobj::MTLLoadResult, ObjError> {
     };
     let bytes =
         std::fs::read(path).map_err(|e| err(0, format!("cannot read the material file: {e}")))?;
+    // Decoded lossily, like the OBJ (see the module docs).
+    let bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
-        let line = std::str::from_utf8(raw)
-            .map_err(|_| err(i + 1, "the line is not valid UTF-8".into()))?;
+        let line = String::from_utf8_lossy(raw);
         let mut words = line.split_whitespace();
         let key = words.next();
         if matches!(key, Some("Ka" | "Kd" | "Ks" | "Ke" | "Kt" | "Tf")) {

@@ -327,3 +327,59 @@ pub mod long_render {
         o
     }
 }
+
+/// Accumulation files (`.wtacc`) written byte by byte, for the hostile-input
+/// tests: any header, any data, and a valid checksum, as an attacker can
+/// forge one (the checksum guards against accidents, not attacks).
+pub mod forge {
+    /// The magic of an accumulation file.
+    pub const MAGIC: &[u8; 8] = b"WTACC\0\0\x01";
+
+    /// A header's JSON: `format` right, the other fields as given.
+    pub fn header(
+        width: u64,
+        height: u64,
+        ranges: &[[u64; 2]],
+        spp: Option<u64>,
+        shard: Option<[u64; 2]>,
+        settings_hash: u128,
+    ) -> String {
+        let ranges: Vec<String> = ranges.iter().map(|[a, b]| format!("[{a},{b}]")).collect();
+        let mut h = format!(
+            "{{\"format\":\"wavetrace-accumulation/1\",\"width\":{width},\"height\":{height},\
+             \"settings_hash\":\"{settings_hash:032x}\",\"ranges\":[{}],\"invalid_samples\":0",
+            ranges.join(",")
+        );
+        if let Some(spp) = spp {
+            h += &format!(",\"spp\":{spp}");
+        }
+        if let Some([i, n]) = shard {
+            h += &format!(",\"shard\":[{i},{n}]");
+        }
+        h + "}"
+    }
+
+    /// A file of `header` (any bytes) and `data`, with a valid checksum.
+    pub fn file(header: &[u8], data: &[u8]) -> Vec<u8> {
+        let mut bytes = MAGIC.to_vec();
+        bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(header);
+        bytes.extend_from_slice(data);
+        seal(bytes)
+    }
+
+    /// `body` (magic, header length, header, sums) with its checksum after it.
+    pub fn seal(mut body: Vec<u8>) -> Vec<u8> {
+        let check = xxhash_rust::xxh3::xxh3_128(&body);
+        body.extend_from_slice(&check.to_le_bytes());
+        body
+    }
+
+    /// The header (as text) and sums of a real file.
+    pub fn split(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
+        let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
+        let header = bytes[16..16 + len].to_vec();
+        let data = bytes[16 + len..bytes.len() - 16].to_vec();
+        (header, data)
+    }
+}

@@ -8,7 +8,7 @@
 //! The models: [`diffuse`] (Lambertian, two-sided), [`mirror`] (perfect
 //! specular reflection), [`glass`] (smooth dielectric: Fresnel, Snell, total
 //! internal reflection) and [`metal`] (rough conductor: GGX with
-//! visible-normal sampling).
+//! visible-normal sampling); [`surface`] dispatches on the model.
 //!
 //! Conventions shared by every model:
 //!
@@ -26,6 +26,9 @@ pub mod diffuse;
 pub mod glass;
 pub mod metal;
 pub mod mirror;
+pub mod surface;
+
+pub use surface::Surface;
 
 use crate::math::{Real, V3};
 

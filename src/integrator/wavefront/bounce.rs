@@ -5,7 +5,6 @@
 use super::queue::{PathQueue, load8, store8};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::{diffuse, facing};
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
@@ -14,39 +13,30 @@ use std::ops::Range;
 use wide::f32x8;
 
 /// Bounce every path in the queue (all live: retired rows are gone) off
-/// the surface it hit.
+/// the surface it hit, each model's rows (`bins`, from the *sort* stage)
+/// with its routine.
 pub fn bounce<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
+    bins: &[(Model, Range<usize>)],
     sampler: &S,
     tables: &Tables,
     estimator: &Estimator,
 ) {
-    for (model, rows) in bins(queue, tables) {
-        match model {
-            Model::Diffuse => diffuse(queue, rows, sampler, tables, estimator),
-        }
+    for (model, rows) in bins {
+        scatter(queue, *model, rows.clone(), sampler, tables, estimator);
     }
 }
 
-/// The queue's rows grouped by the model of the material hit: one row
-/// range per model present.
-fn bins<P>(queue: &PathQueue<P>, tables: &Tables) -> Vec<(Model, Range<usize>)> {
-    match tables.single_model() {
-        Some(model) => vec![(model, 0..queue.len())],
-        // Several models are not possible yet; no material at all means no
-        // surface, and no path to bounce.
-        None => Vec::new(),
-    }
-}
-
-/// Bounce the paths in rows `rows` off ideal diffuse surfaces, eight at a
-/// time: the new origin is the hit point; the new direction and the
-/// throughput's factor come from [`diffuse::sample_uniform`] for the
-/// report's estimator, else from [`diffuse::sample_cosine`] (with the
-/// vertex's scattering numbers, [`Estimator::bsdf_numbers`]), on the side
-/// of the surface the ray came from.
-pub fn diffuse<S: Sampler>(
+/// Bounce the paths in rows `rows`, all at surfaces of model `model`,
+/// eight at a time: the new origin is the hit point; the new direction and
+/// the throughput's factor come from [`Surface::sample`](crate::integrator::bsdf::Surface::sample) (for diffuse
+/// surfaces, uniform directions for the report's estimator and
+/// cosine-weighted ones otherwise), with the vertex's scattering numbers
+/// ([`Estimator::bsdf_numbers`]). The density goes to the queue for the
+/// MIS weight of the emission the new ray finds: 0 after a delta bounce.
+pub fn scatter<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
+    model: Model,
     rows: Range<usize>,
     sampler: &S,
     tables: &Tables,
@@ -55,9 +45,9 @@ pub fn diffuse<S: Sampler>(
     let report = estimator.integrator == Integrator::Report;
     for i in rows.clone().step_by(8) {
         let lanes = (rows.end - i).min(8);
-        // Lanes past the last path compute garbage that is stored past the
-        // live rows (the columns are padded to a multiple of 8) and never
-        // read; they borrow the first lane's triangle for the lookups.
+        // Lanes past the last row of the range compute garbage that is not
+        // stored (the next rows belong to another model's range); they
+        // borrow the first lane's triangle for the lookups.
         let tri = |l: usize| queue.hit[i + if l < lanes { l } else { 0 }] as usize;
         let tris: [usize; 8] = std::array::from_fn(tri);
         let normal: Vec3x8 = V3::new(
@@ -65,11 +55,7 @@ pub fn diffuse<S: Sampler>(
             gather8(&tables.normals[1], &tris),
             gather8(&tables.normals[2], &tris),
         );
-        let brdf: Vec3x8 = V3::new(
-            gather8(&tables.brdf[0], &tris),
-            gather8(&tables.brdf[1], &tris),
-            gather8(&tables.brdf[2], &tris),
-        );
+        let surface = tables.surfaces(model, &tris);
         let (_lobe, u) = estimator.bsdf_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
         let load3 = |cols: &[Vec<f32>; 3]| {
             V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
@@ -79,28 +65,36 @@ pub fn diffuse<S: Sampler>(
         let beta = load3(&queue.beta);
         let t = load8(&queue.t, i);
 
-        let (_, n) = facing(normal, d);
         let origin = hit_point(o, d, t);
-        let s = if report {
-            diffuse::sample_uniform(n, brdf, u)
-        } else {
-            diffuse::sample_cosine(n, brdf, u)
-        };
+        let s = surface.sample(normal, d, u, report);
         let beta = s.weigh(beta);
+        let pdf = if model.is_delta() { f32x8::ZERO } else { s.pdf };
 
-        store3(&mut queue.o, i, origin);
-        store3(&mut queue.d, i, s.wi);
-        store3(&mut queue.beta, i, beta);
-        store8(&mut queue.pdf, i, s.pdf);
+        store3(&mut queue.o, i, origin, lanes);
+        store3(&mut queue.d, i, s.wi, lanes);
+        store3(&mut queue.beta, i, beta, lanes);
+        store_lanes(&mut queue.pdf, i, pdf, lanes);
     }
 }
 
-/// Store eight 3-vectors in rows `i..i + 8` of three columns.
+/// Store the first `lanes` of eight 3-vectors in rows `i..i + lanes` of
+/// three columns.
 #[inline(always)]
-fn store3(cols: &mut [Vec<f32>; 3], i: usize, v: Vec3x8) {
-    store8(&mut cols[0], i, v.x);
-    store8(&mut cols[1], i, v.y);
-    store8(&mut cols[2], i, v.z);
+fn store3(cols: &mut [Vec<f32>; 3], i: usize, v: Vec3x8, lanes: usize) {
+    store_lanes(&mut cols[0], i, v.x, lanes);
+    store_lanes(&mut cols[1], i, v.y, lanes);
+    store_lanes(&mut cols[2], i, v.z, lanes);
+}
+
+/// Store the first `lanes` of `v` in rows `i..i + lanes` (all eight at
+/// once when they are all live: the common case).
+#[inline(always)]
+fn store_lanes(col: &mut [f32], i: usize, v: f32x8, lanes: usize) {
+    if lanes == 8 {
+        store8(col, i, v);
+    } else {
+        col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
+    }
 }
 
 /// `[col[rows[0]], ..., col[rows[7]]]` as eight lanes.
@@ -115,6 +109,7 @@ fn gather8(col: &[f32], rows: &[usize; 8]) -> f32x8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::bsdf::Surface;
     use crate::integrator::sampler::{Independent, PathRng};
     use crate::scene::Scene;
 
@@ -145,7 +140,8 @@ mod tests {
         for n in 0..=17 {
             let before = queue(n, &sampler);
             let mut after = before.clone();
-            diffuse(&mut after, 0..n, &sampler, &tables, &Estimator::report(3));
+            let est = Estimator::report(3);
+            scatter(&mut after, Model::Diffuse, 0..n, &sampler, &tables, &est);
             for i in 0..n {
                 // The same row, bounced by the scalar (f32) routine.
                 let tri = before.hit[i] as usize;
@@ -155,8 +151,7 @@ mod tests {
                 let mut path = before.sampler[i];
                 let u = sampler.next_2d(&mut path);
                 let (o, d) = (col(&before.o), col(&before.d));
-                let (_, n_facing) = facing(normal, d);
-                let s = diffuse::sample_uniform(n_facing, brdf, u);
+                let s = Surface::diffuse(brdf).sample(normal, d, u, true);
                 let want = [
                     hit_point(o, d, before.t[i]),
                     s.wi,

@@ -11,68 +11,93 @@ use crate::integrator::lights::{Emitter, LightPoint, Lights};
 use crate::integrator::nee::{Estimator, ShadowRay, connect};
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
+use crate::scene::Model;
+use std::ops::Range;
 use wide::f32x8;
 
-/// Sample an emitter from every path's vertex (three numbers per path)
-/// and queue the shadow rays that may carry light.
+/// Sample an emitter from every path's vertex at a non-delta surface
+/// (three numbers per path; paths at delta surfaces skip theirs), model by
+/// model (`bins`, from the *sort* stage), and queue the shadow rays that
+/// may carry light.
 pub fn sample_lights<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
+    bins: &[(Model, Range<usize>)],
     (sampler, estimator): (&S, &Estimator),
     (tables, lights): (&Tables, &Lights),
     shadows: &mut ShadowQueue,
 ) {
     shadows.clear();
-    let n = queue.len();
-    for i in (0..n).step_by(8) {
-        let lanes = (n - i).min(8);
-        // Each lane's emitter and point on it; lanes past the last path
-        // get no emitter (never valid).
-        let [u0, u1] = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
-        let mut u0 = u0.to_array();
-        let mut emitters = [&Emitter::NONE; 8];
-        let mut tris = [queue.hit[i] as usize; 8];
-        for l in 0..lanes {
-            (emitters[l], u0[l]) = lights.pick(u0[l]);
-            tris[l] = queue.hit[i + l] as usize;
-        }
-        let light = LightPoint::on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
-        let gather = |cols: &[Vec<f32>; 3]| -> Vec3x8 {
-            let g = |c: &Vec<f32>| f32x8::from(tris.map(|t| c[t]));
-            V3::new(g(&cols[0]), g(&cols[1]), g(&cols[2]))
-        };
-        let load3 = |cols: &[Vec<f32>; 3]| {
-            V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
-        };
-        let d = load3(&queue.d);
-        let p = hit_point(load3(&queue.o), d, load8(&queue.t, i));
-        let (_, n) = facing(gather(&tables.normals), d);
-        let (valid, ray) = connect(
-            &light,
-            f32x8::splat(tables.epsilon),
-            p,
-            n,
-            gather(&tables.brdf),
-        );
-        let valid = valid.to_bitmask();
-        if valid != 0 {
-            let a = |v: f32x8| v.to_array();
-            let v3 = |v: &Vec3x8| [a(v.x), a(v.y), a(v.z)];
-            let (o, dir, r, t) = (
-                v3(&ray.origin),
-                v3(&ray.dir),
-                v3(&ray.radiance),
-                a(ray.t_max),
-            );
-            for l in (0..lanes).filter(|l| valid & (1 << l) != 0) {
-                let lane = |v: &[[f32; 8]; 3]| V3::new(v[0][l], v[1][l], v[2][l]);
-                let ray = ShadowRay {
-                    origin: lane(&o),
-                    dir: lane(&dir),
-                    t_max: t[l],
-                    radiance: lane(&r),
-                };
-                shadows.push((i + l) as u32, ray);
+    for (model, rows) in bins {
+        if model.is_delta() {
+            for path in &mut queue.sampler[rows.clone()] {
+                estimator.skip_light_numbers(sampler, path);
             }
+            continue;
+        }
+        let (model, rows) = (*model, rows.clone());
+        for i in rows.clone().step_by(8) {
+            sample_lights_8(
+                queue,
+                (i, (rows.end - i).min(8), model),
+                (sampler, estimator),
+                (tables, lights),
+                shadows,
+            );
+        }
+    }
+}
+
+/// [`sample_lights`] for the `lanes` paths of rows `i..i + lanes`, at
+/// surfaces of model `model`.
+#[inline(always)]
+fn sample_lights_8<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    (i, lanes, model): (usize, usize, Model),
+    (sampler, estimator): (&S, &Estimator),
+    (tables, lights): (&Tables, &Lights),
+    shadows: &mut ShadowQueue,
+) {
+    // Each lane's emitter and point on it; lanes past the last path
+    // get no emitter (never valid).
+    let [u0, u1] = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
+    let mut u0 = u0.to_array();
+    let mut emitters = [&Emitter::NONE; 8];
+    let mut tris = [queue.hit[i] as usize; 8];
+    for l in 0..lanes {
+        (emitters[l], u0[l]) = lights.pick(u0[l]);
+        tris[l] = queue.hit[i + l] as usize;
+    }
+    let light = LightPoint::on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
+    let gather = |cols: &[Vec<f32>; 3]| -> Vec3x8 {
+        let g = |c: &Vec<f32>| f32x8::from(tris.map(|t| c[t]));
+        V3::new(g(&cols[0]), g(&cols[1]), g(&cols[2]))
+    };
+    let load3 =
+        |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
+    let d = load3(&queue.d);
+    let p = hit_point(load3(&queue.o), d, load8(&queue.t, i));
+    let (_, n) = facing(gather(&tables.normals), d);
+    let surface = tables.surfaces(model, &tris);
+    let (valid, ray) = connect(&light, f32x8::splat(tables.epsilon), (p, n, -d), &surface);
+    let valid = valid.to_bitmask();
+    if valid != 0 {
+        let a = |v: f32x8| v.to_array();
+        let v3 = |v: &Vec3x8| [a(v.x), a(v.y), a(v.z)];
+        let (o, dir, r, t) = (
+            v3(&ray.origin),
+            v3(&ray.dir),
+            v3(&ray.radiance),
+            a(ray.t_max),
+        );
+        for l in (0..lanes).filter(|l| valid & (1 << l) != 0) {
+            let lane = |v: &[[f32; 8]; 3]| V3::new(v[0][l], v[1][l], v[2][l]);
+            let ray = ShadowRay {
+                origin: lane(&o),
+                dir: lane(&dir),
+                t_max: t[l],
+                radiance: lane(&r),
+            };
+            shadows.push((i + l) as u32, ray);
         }
     }
 }

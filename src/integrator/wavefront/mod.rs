@@ -7,11 +7,13 @@
 //! 2. *shade*: the emission each path sees;
 //! 3. *retire*: paths that escaped, reached the maximum depth or lost at
 //!    Russian roulette go into the film and leave the queue;
-//! 4. *light* (next-event estimation only): a point on an emitter for
-//!    every live path, and a shadow ray towards it;
-//! 5. *shadow*: the shadow rays tested for occlusion; those that arrive
-//!    add their light;
-//! 6. *bounce*: the live paths, grouped by material model, scatter: next
+//! 4. *sort*: the live paths grouped by the material model they hit (a
+//!    scene of one model skips it);
+//! 5. *light* (next-event estimation only): a point on an emitter for
+//!    every live path at a non-delta surface, and a shadow ray towards it;
+//! 6. *shadow*: the shadow rays tested for occlusion (any hit); those that
+//!    arrive add their light;
+//! 7. *bounce*: each model's paths scatter with its routine: next
 //!    direction and throughput, 8 paths at a time.
 //!
 //! Each stage is one file of this module and one [`Stage`] in the timings;
@@ -31,6 +33,7 @@ pub(crate) mod queue;
 pub(crate) mod retire;
 pub(crate) mod shade;
 pub(crate) mod shadow;
+pub(crate) mod sort;
 pub(crate) mod tables;
 
 use crate::accel::bvh::Bvh;
@@ -153,9 +156,10 @@ impl WavefrontEngine {
             if last {
                 continue;
             }
+            let bins = time.time(Stage::Sort, || sort::sort_by_model(queue, tables));
             if est.samples_lights() {
                 time.time(Stage::Light, || {
-                    light::sample_lights(queue, (sampler, est), (tables, lights), shadows)
+                    light::sample_lights(queue, &bins, (sampler, est), (tables, lights), shadows)
                 });
                 let shadow_rays = time.time(Stage::Shadow, || {
                     shadow::shadow(queue, shadows, &self.bvh, tables.epsilon)
@@ -164,7 +168,7 @@ impl WavefrontEngine {
                 counters.shadow_rays += shadow_rays;
             }
             time.time(Stage::Bounce, || {
-                bounce::bounce(queue, sampler, tables, est)
+                bounce::bounce(queue, &bins, sampler, tables, est)
             });
         }
     }

@@ -44,10 +44,13 @@ pub struct PathQueue<P> {
 }
 
 impl<P: bytemuck::Pod> PathQueue<P> {
-    /// An empty queue with room for `n` paths.
+    /// An empty queue with room for `n` paths (rounded up to whole groups
+    /// of 8). The float columns have 7 rows more, so that 8 rows can be
+    /// loaded from any row (the *sort* stage starts a model's rows
+    /// anywhere).
     pub fn with_capacity(n: usize) -> Self {
         let rows = n.div_ceil(8) * 8;
-        let col = || vec![0.0f32; rows];
+        let col = || vec![0.0f32; rows + 7];
         Self {
             len: 0,
             pixel: vec![0; rows],
@@ -113,6 +116,21 @@ impl<P: Copy> PathQueue<P> {
         self.pdf[to] = self.pdf[from];
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
+    }
+
+    /// Exchange paths `a` and `b` (the intersect outputs too).
+    #[inline]
+    pub fn swap_rows(&mut self, a: usize, b: usize) {
+        self.pixel.swap(a, b);
+        self.sampler.swap(a, b);
+        for cols in [&mut self.o, &mut self.d, &mut self.beta, &mut self.radiance] {
+            for col in cols.iter_mut() {
+                col.swap(a, b);
+            }
+        }
+        self.pdf.swap(a, b);
+        self.t.swap(a, b);
+        self.hit.swap(a, b);
     }
 
     /// Drop the [`RETIRED`] rows. Each hole is filled with the last live

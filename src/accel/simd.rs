@@ -1,0 +1,374 @@
+//! SIMD widths for the intersection kernels: 8 lanes (AVX2, every x86-64-v3
+//! CPU) or 16 (AVX-512, chosen at run time where the CPU has it).
+//!
+//! The binary is built for x86-64-v3. The 16-lane kernels live in functions
+//! compiled with `#[target_feature(enable = "avx512f,...")]`, entered only
+//! after [`SimdWidth::W16`] was found available by
+//! `is_x86_feature_detected!`. Both widths run the same generic source
+//! ([`moller_trumbore`](crate::accel::triangle::moller_trumbore) over a
+//! [`Lanes`] type), so each lane does the same IEEE operations, fused
+//! multiply-adds included, and the two give the same hits bit for bit.
+
+use crate::math::Real;
+use std::fmt::Debug;
+use wide::{f32x4, f32x8, i32x8};
+
+/// How many triangles (and, for nodes, boxes) the hot kernels test at once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SimdWidth {
+    /// 8 lanes: 256-bit AVX2 + FMA, on every CPU this build runs on.
+    W8,
+    /// 16 lanes: 512-bit AVX-512 (F, VL, DQ, BW), where the CPU has it.
+    W16,
+}
+
+impl SimdWidth {
+    /// The widest width this CPU runs, unless the environment variable
+    /// `WAVETRACE_SIMD` is `8` or `16` (for comparisons; a width the CPU
+    /// lacks falls back to 8).
+    pub fn detect() -> Self {
+        match std::env::var("WAVETRACE_SIMD").as_deref() {
+            Ok("8") => SimdWidth::W8,
+            Ok("16") if SimdWidth::W16.is_available() => SimdWidth::W16,
+            _ => Self::widest(),
+        }
+    }
+
+    /// The widest width this CPU runs.
+    pub fn widest() -> Self {
+        if SimdWidth::W16.is_available() {
+            SimdWidth::W16
+        } else {
+            SimdWidth::W8
+        }
+    }
+
+    /// Whether this CPU runs this width.
+    pub fn is_available(self) -> bool {
+        match self {
+            SimdWidth::W8 => true,
+            SimdWidth::W16 => avx512_available(),
+        }
+    }
+
+    /// The number of lanes: 8 or 16.
+    pub fn lanes(self) -> usize {
+        match self {
+            SimdWidth::W8 => 8,
+            SimdWidth::W16 => 16,
+        }
+    }
+
+    /// How stats and the command line name it: `"avx2"` or `"avx512"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdWidth::W8 => "avx2",
+            SimdWidth::W16 => "avx512",
+        }
+    }
+
+    /// The width with `lanes` lanes (8 or 16).
+    pub fn from_lanes(lanes: usize) -> Option<Self> {
+        match lanes {
+            8 => Some(SimdWidth::W8),
+            16 => Some(SimdWidth::W16),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn avx512_available() -> bool {
+    is_x86_feature_detected!("avx512f")
+        && is_x86_feature_detected!("avx512vl")
+        && is_x86_feature_detected!("avx512dq")
+        && is_x86_feature_detected!("avx512bw")
+        && is_x86_feature_detected!("fma")
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn avx512_available() -> bool {
+    false
+}
+
+/// A [`Real`] with several lanes and the integer lanes that carry triangle
+/// indices beside it: what the packs and the hierarchy are generic over.
+pub trait Lanes: Real + Debug + Send + Sync + 'static {
+    /// The number of lanes.
+    const LANES: usize;
+    /// One `i32` per lane.
+    type Index: Copy + Debug + Send + Sync;
+    /// The lanes from `a` (at most [`Lanes::LANES`] values; the rest are
+    /// `fill`). Needs no particular instruction set.
+    fn from_slice(a: &[f32], fill: f32) -> Self;
+    /// The integer lanes from `a` (the rest are `fill`).
+    fn index_from_slice(a: &[i32], fill: i32) -> Self::Index;
+    /// The same index in every lane.
+    fn index_splat(i: i32) -> Self::Index;
+    /// `a < b` lane-wise.
+    fn index_lt(a: Self::Index, b: Self::Index) -> Self::Mask;
+    /// `if m { a } else { b }` lane-wise.
+    fn index_select(m: Self::Mask, a: Self::Index, b: Self::Index) -> Self::Index;
+    /// Whether any lane of `m` is set.
+    fn any(m: Self::Mask) -> bool;
+    /// The smallest lane (no lane may be NaN).
+    fn min_lane(self) -> f32;
+    /// The smallest index among the lanes whose value is `t`
+    /// (`i32::MAX` where none).
+    fn min_index_at(self, t: f32, index: Self::Index) -> i32;
+    /// The lanes, in order (for tests and debugging).
+    fn to_vec(self) -> Vec<f32>;
+}
+
+impl Lanes for f32x8 {
+    const LANES: usize = 8;
+    type Index = i32x8;
+    #[inline(always)]
+    fn from_slice(a: &[f32], fill: f32) -> Self {
+        f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
+            a.get(l).copied().unwrap_or(fill)
+        }))
+    }
+    #[inline(always)]
+    fn index_from_slice(a: &[i32], fill: i32) -> i32x8 {
+        i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
+            a.get(l).copied().unwrap_or(fill)
+        }))
+    }
+    #[inline(always)]
+    fn index_splat(i: i32) -> i32x8 {
+        i32x8::splat(i)
+    }
+    #[inline(always)]
+    fn index_lt(a: i32x8, b: i32x8) -> f32x8 {
+        bytemuck::cast(a.simd_lt(b))
+    }
+    #[inline(always)]
+    fn index_select(m: f32x8, a: i32x8, b: i32x8) -> i32x8 {
+        bytemuck::cast::<f32x8, i32x8>(m).select(a, b)
+    }
+    #[inline(always)]
+    fn any(m: f32x8) -> bool {
+        m.any()
+    }
+    #[inline(always)]
+    fn min_lane(self) -> f32 {
+        // A tree of minima: 8 lanes -> 4 -> 2 -> 1 (no lane is NaN).
+        let [lo, hi]: [f32x4; 2] = bytemuck::cast(self);
+        let [a, b, c, d] = lo.fast_min(hi).to_array();
+        let min = |x: f32, y: f32| if x < y { x } else { y };
+        min(min(a, b), min(c, d))
+    }
+    #[inline(always)]
+    fn min_index_at(self, t: f32, index: i32x8) -> i32 {
+        let at: i32x8 = bytemuck::cast(self.simd_eq(f32x8::splat(t)));
+        at.select(index, i32x8::splat(i32::MAX)).reduce_min()
+    }
+    fn to_vec(self) -> Vec<f32> {
+        self.to_array().to_vec()
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x16::F32x16;
+
+/// 16 lanes of AVX-512.
+///
+/// # Safety
+///
+/// Every method here executes AVX-512 instructions. A value of [`F32x16`]
+/// is only ever made and used inside the hierarchy's 16-lane kernels, which
+/// are reached only through `#[target_feature(enable = "avx512f,...")]`
+/// functions, which are called only when [`SimdWidth::W16`] was found
+/// available at run time. The methods are `#[inline(always)]`, so they are
+/// compiled as part of those functions, with AVX-512 enabled. The type is
+/// private to the crate: nothing outside can make one.
+#[cfg(target_arch = "x86_64")]
+mod x16 {
+    use super::Lanes;
+    use crate::math::Real;
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
+
+    /// Sixteen `f32` lanes in one AVX-512 register.
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub(crate) struct F32x16(__m512);
+
+    /// Sixteen `i32` lanes in one AVX-512 register.
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub(crate) struct I32x16(__m512i);
+
+    /// A lane mask: one bit per lane.
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub(crate) struct Mask16(u16);
+
+    // SAFETY (every `unsafe` block in this module): the instructions are
+    // AVX-512F/DQ ones, and this code only runs on a CPU that has them (see
+    // the module's documentation). None of the intrinsics touches memory
+    // through a pointer except `_mm512_loadu_*`, whose pointers come from
+    // arrays of exactly 16 lanes.
+
+    impl BitAnd for Mask16 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, o: Self) -> Self {
+            Mask16(self.0 & o.0)
+        }
+    }
+
+    impl BitOr for Mask16 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitor(self, o: Self) -> Self {
+            Mask16(self.0 | o.0)
+        }
+    }
+
+    macro_rules! binop {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl $tr for F32x16 {
+                type Output = Self;
+                #[inline(always)]
+                fn $f(self, o: Self) -> Self {
+                    // SAFETY: see the module's documentation.
+                    F32x16(unsafe { $intr(self.0, o.0) })
+                }
+            }
+        };
+    }
+    binop!(Add, add, _mm512_add_ps);
+    binop!(Sub, sub, _mm512_sub_ps);
+    binop!(Mul, mul, _mm512_mul_ps);
+    binop!(Div, div, _mm512_div_ps);
+
+    impl Neg for F32x16 {
+        type Output = Self;
+        /// Flips the sign bit (as `f32`'s and `f32x8`'s negation do).
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe {
+                _mm512_castsi512_ps(_mm512_xor_si512(
+                    _mm512_castps_si512(self.0),
+                    _mm512_set1_epi32(i32::MIN),
+                ))
+            })
+        }
+    }
+
+    impl Real for F32x16 {
+        type Mask = Mask16;
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn mul_add(self, a: Self, b: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_fmadd_ps(self.0, a.0, b.0) })
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_abs_ps(self.0) })
+        }
+        #[inline(always)]
+        fn round_ties_even(self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe {
+                _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(self.0)
+            })
+        }
+        #[inline(always)]
+        fn lt(self, rhs: Self) -> Mask16 {
+            // SAFETY: see the module's documentation.
+            Mask16(unsafe { _mm512_cmp_ps_mask::<_CMP_LT_OQ>(self.0, rhs.0) })
+        }
+        #[inline(always)]
+        fn le(self, rhs: Self) -> Mask16 {
+            // SAFETY: see the module's documentation.
+            Mask16(unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(self.0, rhs.0) })
+        }
+        #[inline(always)]
+        fn eq(self, rhs: Self) -> Mask16 {
+            // SAFETY: see the module's documentation.
+            Mask16(unsafe { _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(self.0, rhs.0) })
+        }
+        #[inline(always)]
+        fn ne(self, rhs: Self) -> Mask16 {
+            // SAFETY: see the module's documentation.
+            Mask16(unsafe { _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(self.0, rhs.0) })
+        }
+        #[inline(always)]
+        fn select(mask: Mask16, a: Self, b: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_mask_blend_ps(mask.0, b.0, a.0) })
+        }
+    }
+
+    impl Lanes for F32x16 {
+        const LANES: usize = 16;
+        type Index = I32x16;
+        #[inline(always)]
+        fn from_slice(a: &[f32], fill: f32) -> Self {
+            let v: [f32; 16] = std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill));
+            // SAFETY: `__m512` is 64 bytes that any bit pattern is valid for;
+            // a reinterpretation needs no instruction.
+            F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>(v) })
+        }
+        #[inline(always)]
+        fn index_from_slice(a: &[i32], fill: i32) -> I32x16 {
+            let v: [i32; 16] = std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill));
+            // SAFETY: as in `from_slice`.
+            I32x16(unsafe { std::mem::transmute::<[i32; 16], __m512i>(v) })
+        }
+        #[inline(always)]
+        fn index_splat(i: i32) -> I32x16 {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_set1_epi32(i) })
+        }
+        #[inline(always)]
+        fn index_lt(a: I32x16, b: I32x16) -> Mask16 {
+            // SAFETY: see the module's documentation.
+            Mask16(unsafe { _mm512_cmplt_epi32_mask(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn index_select(m: Mask16, a: I32x16, b: I32x16) -> I32x16 {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_mask_blend_epi32(m.0, b.0, a.0) })
+        }
+        #[inline(always)]
+        fn any(m: Mask16) -> bool {
+            m.0 != 0
+        }
+        #[inline(always)]
+        fn min_lane(self) -> f32 {
+            // SAFETY: see the module's documentation. (The minimum of
+            // non-NaN values does not depend on the order of the tree.)
+            unsafe { _mm512_reduce_min_ps(self.0) }
+        }
+        #[inline(always)]
+        fn min_index_at(self, t: f32, index: I32x16) -> i32 {
+            // SAFETY: see the module's documentation.
+            unsafe {
+                let at = _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(self.0, _mm512_set1_ps(t));
+                _mm512_mask_reduce_min_epi32(at, index.0)
+            }
+        }
+        #[inline(always)]
+        fn to_vec(self) -> Vec<f32> {
+            // SAFETY: `__m512` and `[f32; 16]` are the same 64 bytes; a
+            // reinterpretation needs no instruction.
+            unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }.to_vec()
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! A surface's scattering by its model: the one place that dispatches on
+//! [`Model`], for both engines (one lane in the reference tracer, eight
+//! paths of one model at a time in the wavefront engine).
+
+use super::{BsdfSample, diffuse, facing, glass, metal, mirror};
+use crate::math::{Real, V3};
+use crate::scene::Model;
+
+/// The scattering of a surface, lane by lane, for one model.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface<R: Real> {
+    /// The model, the same in every lane.
+    pub model: Model,
+    /// The model's colour: the BRDF `ρ/π` for diffuse; the reflectance for
+    /// mirror and metal; the transmittance for glass.
+    pub tint: V3<R>,
+    /// GGX roughness α (metal).
+    pub alpha: R,
+    /// Index of refraction (glass).
+    pub ior: R,
+}
+
+impl<R: Real> Surface<R> {
+    /// A diffuse surface of BRDF `f = ρ/π`.
+    #[inline(always)]
+    pub fn diffuse(f: V3<R>) -> Self {
+        Self {
+            model: Model::Diffuse,
+            tint: f,
+            alpha: R::splat(0.0),
+            ior: R::splat(1.0),
+        }
+    }
+
+    /// The scattered direction of a ray of direction `d` that hit the
+    /// surface of geometric (front) unit normal `normal`, from the vertex's
+    /// two direction numbers `u`. Diffuse surfaces draw uniform hemisphere
+    /// directions when `uniform` (the report's estimator), cosine-weighted
+    /// ones otherwise; glass chooses reflection or refraction with `u[0]`.
+    #[inline(always)]
+    pub fn sample(&self, normal: V3<R>, d: V3<R>, u: [R; 2], uniform: bool) -> BsdfSample<R> {
+        let (_, n) = facing(normal, d);
+        let wo = -d;
+        match self.model {
+            Model::Diffuse if uniform => diffuse::sample_uniform(n, self.tint, u),
+            Model::Diffuse => diffuse::sample_cosine(n, self.tint, u),
+            Model::Mirror => mirror::sample(n, wo, self.tint),
+            Model::Glass => glass::sample(normal, wo, self.ior, self.tint, u[0]),
+            Model::Metal => metal::sample(n, wo, self.alpha, self.tint, u),
+        }
+    }
+
+    /// For light sampling at a non-delta surface of facing unit normal `n`
+    /// (turned towards `wo`): `(f · cos θ, cos θ, pdf)` for the direction
+    /// `wi`, with `pdf` the density [`sample`](Self::sample) draws `wi`
+    /// with (cosine-weighted for diffuse). Zero where the surface does not
+    /// scatter `wo` into `wi`; delta models give zero everywhere.
+    #[inline(always)]
+    pub fn eval(&self, n: V3<R>, wo: V3<R>, wi: V3<R>) -> (V3<R>, R, R) {
+        let zero = R::splat(0.0);
+        match self.model {
+            Model::Diffuse => {
+                let (fcos, cos) = diffuse::eval(n, self.tint, wi);
+                (fcos, cos, diffuse::pdf_cosine(n, wi))
+            }
+            Model::Metal => {
+                let f = metal::eval(n, wo, wi, self.alpha, self.tint);
+                let cos = n.dot(wi).max(zero);
+                (f.scale(cos), cos, metal::pdf(n, wo, wi, self.alpha))
+            }
+            Model::Mirror | Model::Glass => (V3::new(zero, zero, zero), zero, zero),
+        }
+    }
+}

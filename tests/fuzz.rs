@@ -1,0 +1,688 @@
+//! Property-based fuzzing of every input wavetrace reads: scene files
+//! (TOML), meshes (OBJ and MTL) and accumulation files (`.wtacc`).
+//!
+//! Valid inputs are mutated (numbers swapped for hostile ones, lines
+//! deleted, duplicated or inserted, bytes flipped, files truncated), and
+//! accumulation files are also forged outright, with valid checksums. For
+//! every case: no panic, a bounded time, and either a usable result or an
+//! error naming the file (and a line within it, where it gives one); a
+//! refused merge or resume leaves its inputs as they were and writes
+//! nothing.
+//!
+//! The loaders run in-process; a share of the `.wtacc` cases also run the
+//! binary (`merge`, `render --resume`), which must exit 0 or 1, never
+//! crash.
+//!
+//! `WAVETRACE_FUZZ_CASES=N` sets the cases per property (default
+//! [`DEFAULT_CASES`], a few seconds in release mode); e.g.
+//! `WAVETRACE_FUZZ_CASES=5000 cargo test --release --test fuzz` for a long
+//! run. Failures are not persisted to files; proptest prints the shrunk
+//! input.
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use proptest::sample::select;
+use proptest::test_runner::Config;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use wavetrace::film::{AccMeta, Film};
+use wavetrace::render::Renderer;
+use wavetrace::scene::{CORNELL_TOML, Scene, obj};
+
+/// Cases per property unless `WAVETRACE_FUZZ_CASES` says otherwise.
+const DEFAULT_CASES: u32 = 96;
+
+/// The most one case may take (generous: CI machines are slow and busy).
+const CASE_TIME: Duration = Duration::from_secs(20);
+
+fn config() -> Config {
+    let cases = std::env::var("WAVETRACE_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(DEFAULT_CASES);
+    Config {
+        cases,
+        failure_persistence: None,
+        max_shrink_iters: 256,
+        ..Config::default()
+    }
+}
+
+/// Tokens a hostile number can be.
+const HOSTILE_NUMBERS: &[&str] = &[
+    "0",
+    "-0.0",
+    "-1",
+    "1",
+    "0.5",
+    "2",
+    "1e39",
+    "-1e39",
+    "3.4e38",
+    "1e-45",
+    "1e-300",
+    "nan",
+    "inf",
+    "-inf",
+    "1025",
+    "65535",
+    "4294967295",
+    "4294967296",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "18446744073709551615",
+    "\"x\"",
+    "[]",
+    "[1, 2, 3, 4]",
+    "[[1, 2, 3]]",
+    "true",
+    "{}",
+];
+
+/// Lines a hostile scene file may gain.
+const HOSTILE_LINES: &[&str] = &[
+    "emission = [10, 10, 10, -1]",
+    "reflectance = [0.5, 0.5]",
+    "width = 0",
+    "height = 4294967295",
+    "max_depth = 4294967295",
+    "rr_depth = 0",
+    "name = \"\\u0000\"",
+    "[[quad]]",
+    "[[triangle]]",
+    "[[mesh]]",
+    "[[generate]]",
+    "kind = \"sphere\"",
+    "kind = \"terrain\"",
+    "triangles = 18446744073709551615",
+    "triangles = 50000001",
+    "triangles = 64",
+    "material = \"floor\"",
+    "material = \"nonexistent\"",
+    "file = \"/nonexistent.obj\"",
+    "file = \"\"",
+    "scale = 0",
+    "scale = [1e30, 1e30, 1e30]",
+    "scale = [1, 1, 1, 1]",
+    "translate = [3e38, 3e38, 3e38]",
+    "rotate_deg = [nan, 0, 0]",
+    "vertices = [[0, 0, 0], [0, 0, 0], [0, 0, 0]]",
+    "vertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 2, 2]]",
+    "look_at = [0, 0, 0]",
+    "vfov_deg = 180",
+    "focal_length_px = -1",
+    "[camera]",
+    "[integrator]",
+    "name = \"sobol\"",
+    "sampler = \"sobol\"",
+    "x = 1",
+    "= 1",
+    "[",
+    "\"",
+    "'''",
+];
+
+/// One edit of a scene file's text.
+#[derive(Clone, Debug)]
+enum Edit {
+    /// Replace the `n`-th number (mod the count) with `to`.
+    Number(usize, &'static str),
+    DeleteLine(usize),
+    DuplicateLine(usize),
+    InsertLine(usize, &'static str),
+    /// Flip bit `bit` of byte `at` (mod the length): may leave bad UTF-8.
+    FlipBit(usize, u8),
+    Truncate(usize),
+}
+
+fn edit() -> impl Strategy<Value = Edit> {
+    prop_oneof![
+        4 => (any::<usize>(), select(HOSTILE_NUMBERS)).prop_map(|(n, t)| Edit::Number(n, t)),
+        1 => any::<usize>().prop_map(Edit::DeleteLine),
+        1 => any::<usize>().prop_map(Edit::DuplicateLine),
+        3 => (any::<usize>(), select(HOSTILE_LINES)).prop_map(|(n, l)| Edit::InsertLine(n, l)),
+        1 => (any::<usize>(), 0u8..8).prop_map(|(a, b)| Edit::FlipBit(a, b)),
+        1 => any::<usize>().prop_map(Edit::Truncate),
+    ]
+}
+
+fn apply(text: &[u8], e: &Edit) -> Vec<u8> {
+    let lines =
+        |t: &[u8]| -> Vec<Vec<u8>> { t.split(|&b| b == b'\n').map(<[u8]>::to_vec).collect() };
+    let join = |ls: Vec<Vec<u8>>| ls.join(&b'\n');
+    match *e {
+        Edit::Number(n, to) => {
+            // Spans of number tokens: digits with signs, dots and exponents.
+            let mut spans = Vec::new();
+            let mut i = 0;
+            while i < text.len() {
+                if text[i].is_ascii_digit() {
+                    let mut s = i;
+                    while s > 0 && matches!(text[s - 1], b'-' | b'+' | b'.') {
+                        s -= 1;
+                    }
+                    let mut e = i;
+                    while e < text.len()
+                        && (text[e].is_ascii_alphanumeric()
+                            || matches!(text[e], b'.' | b'-' | b'+'))
+                    {
+                        e += 1;
+                    }
+                    spans.push((s, e));
+                    i = e;
+                } else {
+                    i += 1;
+                }
+            }
+            if spans.is_empty() {
+                return text.to_vec();
+            }
+            let (s, e) = spans[n % spans.len()];
+            [&text[..s], to.as_bytes(), &text[e..]].concat()
+        }
+        Edit::DeleteLine(n) => {
+            let mut ls = lines(text);
+            let k = n % ls.len();
+            ls.remove(k);
+            join(ls)
+        }
+        Edit::DuplicateLine(n) => {
+            let mut ls = lines(text);
+            let k = n % ls.len();
+            let l = ls[k].clone();
+            ls.insert(k, l);
+            join(ls)
+        }
+        Edit::InsertLine(n, l) => {
+            let mut ls = lines(text);
+            let k = n % (ls.len() + 1);
+            ls.insert(k, l.as_bytes().to_vec());
+            join(ls)
+        }
+        Edit::FlipBit(at, bit) => {
+            let mut t = text.to_vec();
+            if !t.is_empty() {
+                let k = at % t.len();
+                t[k] ^= 1 << bit;
+            }
+            t
+        }
+        Edit::Truncate(at) => text[..at % (text.len() + 1)].to_vec(),
+    }
+}
+
+/// Renders `scene` at 4x4 pixels, 1 sample, 1 thread, if the settings
+/// allow; nothing may panic.
+fn render_tiny(scene: &Scene) {
+    if scene.triangles.len() > 20_000 {
+        return;
+    }
+    let mut s = wavetrace::render::RenderSettings::for_scene(scene);
+    // The scene's own size is checked (not rendered).
+    let _ = s
+        .validate()
+        .and_then(|()| s.check_memory(scene.triangles.len()));
+    (s.width, s.height, s.spp, s.threads) = (4, 4, 1, 1);
+    if s.max_depth > 64 {
+        s.max_depth = 64;
+    }
+    if let Ok(r) = Renderer::new(scene, &s) {
+        let (film, _, _) = r.render();
+        assert_eq!(film.samples_per_pixel(), 1);
+    }
+}
+
+/// A mesh for scene files to load: a quad with a material.
+const MESH_OBJ: &str =
+    "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl glow\nf 1 2 3 4\n";
+const MESH_MTL: &str = "newmtl glow\nKd 0.5 0.5 0.5\nKe 1 1 1\n";
+
+/// The Cornell box plus a mesh, a generated sphere and integrator options:
+/// every kind of entry, for mutations to hit.
+fn scene_base() -> String {
+    format!(
+        "{CORNELL_TOML}\n[[mesh]]\nfile = \"quad.obj\"\nmtl = true\nmaterial = \"floor\"\n\
+         scale = 0.2\nrotate_deg = [180, 0, 0]\ntranslate = [0.1, 0.2, 0.3]\n\n\
+         [[generate]]\nkind = \"sphere\"\ntriangles = 80\nmaterial = \"floor\"\n\
+         center = [0.2, 0.5, 0.2]\nradius = 0.2\n\n\
+         [[generate]]\nkind = \"terrain\"\ntriangles = 32\nmaterial = \"left_wall\"\n\
+         size = [0.5, 0.5]\nheight = 0.05\nseed = 3\n"
+    )
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Scene files, mutated: refused naming the file (and a line in it),
+    /// or loaded and rendered.
+    #[test]
+    fn scene_files(edits in proptest::collection::vec(edit(), 1..5)) {
+        let dir = TempDir::new("fuzz-scene");
+        std::fs::write(dir.join("quad.obj"), MESH_OBJ).unwrap();
+        std::fs::write(dir.join("quad.mtl"), MESH_MTL).unwrap();
+        let mut text = scene_base().into_bytes();
+        for e in &edits {
+            text = apply(&text, e);
+        }
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, &text).unwrap();
+        let t = Instant::now();
+        match Scene::load(&path) {
+            Err(e) => {
+                let shown = e.to_string();
+                let named = e.file == path.display().to_string()
+                    || e.file.ends_with("quad.obj")
+                    || e.file.ends_with("quad.mtl");
+                prop_assert!(named, "{shown}");
+                prop_assert!(shown.starts_with(&e.file), "{shown}");
+                if e.file == path.display().to_string() {
+                    let lines = text.split(|&b| b == b'\n').count();
+                    prop_assert!(e.line <= lines, "line {} of {lines}: {shown}", e.line);
+                }
+            }
+            Ok(scene) => render_tiny(&scene),
+        }
+        prop_assert!(t.elapsed() < CASE_TIME, "{:?}", t.elapsed());
+    }
+}
+
+// --- OBJ and MTL ---
+
+fn coordinate() -> impl Strategy<Value = String> {
+    prop_oneof![
+        4 => (-10.0f32..10.0).prop_map(|x| x.to_string()),
+        1 => any::<f32>().prop_map(|x| format!("{x:e}")),
+        1 => select(&["nan", "inf", "-inf", "1e39", "1e-45", "", "x", "1,5", "0x10", "--1"][..]).prop_map(String::from),
+    ]
+}
+
+fn index() -> impl Strategy<Value = String> {
+    prop_oneof![
+        6 => (1i64..8).prop_map(|i| i.to_string()),
+        2 => (-8i64..0).prop_map(|i| i.to_string()),
+        1 => Just("0".to_string()),
+        1 => select(&["99999999999", "-99999999999", "18446744073709551616", "x", "", "1.5"][..]).prop_map(String::from),
+    ]
+}
+
+fn corner() -> impl Strategy<Value = String> {
+    (index(), 0u8..5, index(), index()).prop_map(|(v, form, t, n)| match form {
+        0 | 1 => v,
+        2 => format!("{v}/{t}"),
+        3 => format!("{v}//{n}"),
+        _ => format!("{v}/{t}/{n}"),
+    })
+}
+
+/// Bytes of a comment or a name: ASCII, Latin-1 and stray UTF-8 bytes.
+fn odd_bytes() -> impl Strategy<Value = Vec<u8>> {
+    proptest::collection::vec(
+        prop_oneof![3 => 0x20u8..0x7f, 1 => 0x80u8..=0xff, 1 => Just(0u8), 1 => Just(b'\r')],
+        0..12,
+    )
+}
+
+fn obj_line() -> impl Strategy<Value = Vec<u8>> {
+    prop_oneof![
+        6 => proptest::collection::vec(coordinate(), 0..5).prop_map(|c| format!("v {}", c.join(" ")).into_bytes()),
+        1 => proptest::collection::vec(coordinate(), 0..4).prop_map(|c| format!("vt {}", c.join(" ")).into_bytes()),
+        1 => proptest::collection::vec(coordinate(), 0..4).prop_map(|c| format!("vn {}", c.join(" ")).into_bytes()),
+        6 => proptest::collection::vec(corner(), 0..7).prop_map(|c| format!("f {}", c.join(" ")).into_bytes()),
+        1 => proptest::collection::vec(index(), 0..3).prop_map(|c| format!("l {}", c.join(" ")).into_bytes()),
+        1 => proptest::collection::vec(index(), 0..3).prop_map(|c| format!("p {}", c.join(" ")).into_bytes()),
+        2 => prop_oneof![Just(b"m".to_vec()), Just(b"Mat\xe9riau".to_vec()), Just(b"missing".to_vec()), odd_bytes()]
+            .prop_map(|n| [b"usemtl ".to_vec(), n].concat()),
+        1 => select(&["mtllib mesh.mtl", "mtllib missing.mtl", "mtllib", "mtllib mesh.mtl mesh.mtl"][..]).prop_map(|s| s.as_bytes().to_vec()),
+        1 => odd_bytes().prop_map(|b| [b"# ".to_vec(), b].concat()),
+        1 => odd_bytes().prop_map(|b| [b"o ".to_vec(), b].concat()),
+        1 => odd_bytes().prop_map(|b| [b"g ".to_vec(), b].concat()),
+        1 => Just(b"s off".to_vec()),
+        1 => odd_bytes(),
+    ]
+}
+
+fn mtl_line() -> impl Strategy<Value = Vec<u8>> {
+    let colour = |key: &'static str| {
+        proptest::collection::vec(coordinate(), 0..5)
+            .prop_map(move |c| format!("{key} {}", c.join(" ")).into_bytes())
+    };
+    prop_oneof![
+        3 => prop_oneof![Just(b"m".to_vec()), Just(b"Mat\xe9riau".to_vec()), odd_bytes()]
+            .prop_map(|n| [b"newmtl ".to_vec(), n].concat()),
+        3 => colour("Kd"),
+        2 => colour("Ke"),
+        1 => colour("Ks"),
+        1 => colour("Ns"),
+        1 => colour("d"),
+        1 => Just(b"map_Kd tex.png".to_vec()),
+        1 => odd_bytes(),
+    ]
+}
+
+fn lines_text(lines: &[Vec<u8>]) -> Vec<u8> {
+    lines.join(&b'\n')
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// OBJ and MTL files of valid vertices and then anything: loaded, or
+    /// refused naming the OBJ or the MTL and a line within it.
+    #[test]
+    fn obj_and_mtl_files(
+        head in proptest::collection::vec(proptest::collection::vec(-5.0f32..5.0, 3), 3..8),
+        body in proptest::collection::vec(obj_line(), 0..24),
+        mtl in proptest::collection::vec(mtl_line(), 0..10),
+        with_mtl in any::<bool>(),
+        through_scene in 0u8..4,
+    ) {
+        let dir = TempDir::new("fuzz-obj");
+        let mut obj_lines: Vec<Vec<u8>> = vec![b"mtllib mesh.mtl".to_vec()];
+        obj_lines.extend(head.iter().map(|v| format!("v {} {} {}", v[0], v[1], v[2]).into_bytes()));
+        obj_lines.extend(body);
+        let obj_text = lines_text(&obj_lines);
+        let mtl_text = lines_text(&mtl);
+        let (obj_path, mtl_path) = (dir.join("mesh.obj"), dir.join("mesh.mtl"));
+        std::fs::write(&obj_path, &obj_text).unwrap();
+        std::fs::write(&mtl_path, &mtl_text).unwrap();
+        let t = Instant::now();
+        match obj::load(&obj_path, with_mtl) {
+            Err(e) => {
+                let count = |t: &[u8]| t.split(|&b| b == b'\n').count();
+                let lines = if e.file == obj_path {
+                    count(&obj_text)
+                } else if e.file == mtl_path {
+                    count(&mtl_text)
+                } else {
+                    // An `mtllib` that names a file that is not there.
+                    prop_assert_eq!(e.file.parent(), Some(dir.path()), "{}", e);
+                    prop_assert!(e.message.contains("cannot read"), "{}", e);
+                    0
+                };
+                prop_assert!(e.line <= lines, "line {} of {}: {}", e.line, lines, e);
+                prop_assert!(e.to_string().starts_with(&e.file.display().to_string()));
+            }
+            Ok(mesh) => {
+                prop_assert_eq!(mesh.triangles.len(), mesh.material.len());
+                for t in &mesh.triangles {
+                    prop_assert!(t.iter().all(|v| v.is_finite()));
+                }
+                for m in mesh.material.iter().flatten() {
+                    prop_assert!(*m < mesh.materials.len());
+                }
+            }
+        }
+        // A share of the cases go through a scene file and a render.
+        if through_scene == 0 {
+            let scene = format!(
+                "{CORNELL_TOML}\n[[mesh]]\nfile = \"mesh.obj\"\nmtl = {with_mtl}\nmaterial = \"floor\"\nscale = 0.1\n"
+            );
+            let scene_path = dir.join("scene.toml");
+            std::fs::write(&scene_path, scene).unwrap();
+            match Scene::load(&scene_path) {
+                Err(e) => prop_assert!(
+                    e.file.ends_with(".obj") || e.file.ends_with(".mtl") || e.file.ends_with("scene.toml"),
+                    "{}", e
+                ),
+                Ok(scene) => render_tiny(&scene),
+            }
+        }
+        prop_assert!(t.elapsed() < CASE_TIME, "{:?}", t.elapsed());
+    }
+}
+
+// --- Accumulation files ---
+
+/// A valid film: its size, ranges and sums (each below what its samples
+/// can make).
+fn film() -> impl Strategy<Value = (Film, AccMeta)> {
+    (
+        1u32..5,
+        1u32..5,
+        proptest::collection::vec((0u32..6, 1u32..4), 0..4),
+        any::<u64>(),
+        0u8..3,
+    )
+        .prop_map(|(w, h, gaps, seed, shard)| {
+            let mut film = Film::new(w, h);
+            let mut at = 0;
+            for (gap, len) in gaps {
+                film.add_range(at + gap..at + gap + len);
+                at += gap + len;
+            }
+            let held = film.samples_per_pixel() as u128;
+            let mut x = seed as u128 | 1;
+            for s in film.sums.iter_mut().flatten() {
+                x = x
+                    .wrapping_mul(0x9E37_79B9_7F4A_7C15_F39C_C060_5CED_C835)
+                    .wrapping_add(1);
+                *s = if held == 0 { 0 } else { x % (held << 63) };
+            }
+            let spp = at.max(1) + shard as u32;
+            let meta = AccMeta {
+                settings_hash: 0x5eed,
+                spp: (shard > 0).then_some(spp),
+                shard: (shard == 2).then_some((0, 1)),
+            };
+            (film, meta)
+        })
+}
+
+/// Header values a forger may write.
+fn forged_number() -> impl Strategy<Value = u64> {
+    prop_oneof![
+        4 => 0u64..6,
+        1 => select(&[u32::MAX as u64, u32::MAX as u64 - 1, 1 << 16, 1 << 31, u32::MAX as u64 + 1, u64::MAX][..]),
+        1 => any::<u32>().prop_map(u64::from),
+    ]
+}
+
+/// How a file is made hostile.
+#[derive(Clone, Debug)]
+enum Hostile {
+    /// Bytes flipped; resealed with a valid checksum or not.
+    Flip(Vec<(usize, u8)>, bool),
+    /// Cut short; resealed or not.
+    Truncate(usize, bool),
+    /// A header forged from scratch, data of `data_pixels` pixels (or the
+    /// header's, when `None`), valid checksum.
+    Forged {
+        width: u64,
+        height: u64,
+        ranges: Vec<[u64; 2]>,
+        spp: Option<u64>,
+        shard: Option<[u64; 2]>,
+        data_pixels: Option<u8>,
+    },
+    /// The header's JSON edited like a scene file; valid checksum.
+    HeaderEdit(Vec<Edit>),
+}
+
+fn hostile() -> impl Strategy<Value = Hostile> {
+    prop_oneof![
+        2 => (proptest::collection::vec((any::<usize>(), 1u8..=255), 1..4), any::<bool>())
+            .prop_map(|(f, seal)| Hostile::Flip(f, seal)),
+        1 => (any::<usize>(), any::<bool>()).prop_map(|(at, seal)| Hostile::Truncate(at, seal)),
+        4 => (
+            forged_number(),
+            forged_number(),
+            proptest::collection::vec((forged_number(), forged_number()).prop_map(|(a, b)| [a, b]), 0..5),
+            proptest::option::of(forged_number()),
+            proptest::option::of((forged_number(), forged_number()).prop_map(|(a, b)| [a, b])),
+            proptest::option::of(0u8..20),
+        )
+            .prop_map(|(width, height, ranges, spp, shard, data_pixels)| Hostile::Forged {
+                width, height, ranges, spp, shard, data_pixels,
+            }),
+        2 => proptest::collection::vec(edit(), 1..4).prop_map(Hostile::HeaderEdit),
+    ]
+}
+
+fn make_hostile(valid: &[u8], h: &Hostile, hash: u128) -> Vec<u8> {
+    let body = &valid[..valid.len() - 16];
+    match h {
+        Hostile::Flip(flips, seal) => {
+            let mut b = if *seal { body.to_vec() } else { valid.to_vec() };
+            for &(at, mask) in flips {
+                let k = at % b.len();
+                b[k] ^= mask;
+            }
+            if *seal { forge::seal(b) } else { b }
+        }
+        Hostile::Truncate(at, seal) => {
+            if *seal {
+                forge::seal(body[..at % (body.len() + 1)].to_vec())
+            } else {
+                valid[..at % valid.len()].to_vec()
+            }
+        }
+        Hostile::Forged {
+            width,
+            height,
+            ranges,
+            spp,
+            shard,
+            data_pixels,
+        } => {
+            let header = forge::header(*width, *height, ranges, *spp, *shard, hash);
+            let pixels = match data_pixels {
+                Some(n) => *n as usize,
+                None => (*width).saturating_mul(*height).min(64) as usize,
+            };
+            forge::file(header.as_bytes(), &vec![0; pixels * 48])
+        }
+        Hostile::HeaderEdit(edits) => {
+            let (mut header, data) = forge::split(valid);
+            for e in edits {
+                header = apply(&header, e);
+            }
+            forge::file(&header, &data)
+        }
+    }
+}
+
+/// A loaded film is consistent whatever the file said.
+fn check_film(film: &Film) -> Result<(), TestCaseError> {
+    prop_assert!(film.width >= 1 && film.height >= 1);
+    prop_assert_eq!(film.sums.len(), film.width as usize * film.height as usize);
+    for w in film.ranges.windows(2) {
+        prop_assert!(w[0].end < w[1].start, "{:?}", film.ranges);
+    }
+    prop_assert!(film.ranges.iter().all(|r| r.start < r.end));
+    let _ = film.to_rgb();
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Accumulation files flipped, truncated, forged: refused naming the
+    /// file, or loaded consistent; merges and resumes refuse them leaving
+    /// every input as it was and writing nothing.
+    #[test]
+    fn accumulation_files((film, meta) in film(), how in hostile(), cli in 0u8..8) {
+        let dir = TempDir::new("fuzz-wtacc");
+        let good = dir.join("good.wtacc");
+        // The hash of the render `cli_cases` resumes, so resuming gets past
+        // the hash check to everything else.
+        let mut settings = wavetrace::render::RenderSettings::for_scene(&Scene::cornell());
+        (settings.width, settings.height) = (film.width, film.height);
+        let meta = AccMeta { settings_hash: settings.image_hash(&Scene::cornell()), ..meta };
+        film.save_with_meta(&good, &meta).unwrap();
+        let valid = std::fs::read(&good).unwrap();
+        let bad_bytes = make_hostile(&valid, &how, meta.settings_hash);
+        let bad = dir.join("bad.wtacc");
+        std::fs::write(&bad, &bad_bytes).unwrap();
+        let t = Instant::now();
+
+        match Film::load_with_meta(&bad, None) {
+            Err(e) => prop_assert!(e.to_string().starts_with(&bad.display().to_string()), "{}", e),
+            Ok((f, _)) => check_film(&f)?,
+        }
+        for parts in [vec![good.clone(), bad.clone()], vec![bad.clone(), good.clone()]] {
+            match wavetrace::run::merge::merge_files(&parts, Some(64), true) {
+                Err(e) => {
+                    let shown = e.to_string();
+                    prop_assert!(
+                        shown.contains("bad.wtacc") || shown.contains("good.wtacc") || shown.contains("--spp"),
+                        "{}", shown
+                    );
+                }
+                Ok(m) => check_film(&m.film)?,
+            }
+        }
+        if cli == 0 {
+            cli_cases(&dir, &good, &bad, &valid, &bad_bytes, &film)?;
+        }
+        prop_assert!(t.elapsed() < CASE_TIME, "{:?}", t.elapsed());
+    }
+}
+
+/// `merge` and `render --resume` with the hostile file: exit 0 or 1 (never
+/// a crash), and after a refusal the inputs are unchanged and nothing new
+/// is in the directory.
+fn cli_cases(
+    dir: &Path,
+    good: &Path,
+    bad: &Path,
+    valid: &[u8],
+    bad_bytes: &[u8],
+    film: &Film,
+) -> Result<(), TestCaseError> {
+    let before = dir_listing(dir);
+    let (w, h) = (film.width.to_string(), film.height.to_string());
+    let runs: [Vec<&str>; 3] = [
+        vec!["merge", p(good), p(bad), "--out", "m.pfm", "--spp", "64"],
+        vec![
+            "merge",
+            p(bad),
+            "--out",
+            "m.wtacc",
+            "--spp",
+            "64",
+            "--allow-partial",
+        ],
+        vec![
+            "--width",
+            &w,
+            "--height",
+            &h,
+            "--spp",
+            "64",
+            "--resume",
+            p(bad),
+            "--out",
+            "r.png",
+        ],
+    ];
+    for (k, args) in runs.iter().enumerate() {
+        let o = run_with_limit(dir, args, CASE_TIME);
+        let code = o.status.code();
+        prop_assert!(matches!(code, Some(0 | 1)), "{:?}: {}", args, text(&o));
+        if code == Some(1) {
+            let e = stderr(&o);
+            prop_assert!(!e.contains("panicked"), "{}", e);
+            prop_assert_eq!(&dir_listing(dir), &before, "{:?}: {}", args, e);
+        }
+        prop_assert_eq!(std::fs::read(good).unwrap(), valid);
+        // A resume that succeeds checkpoints into the file it resumed.
+        if !(k == 2 && code == Some(0)) {
+            prop_assert_eq!(std::fs::read(bad).unwrap(), bad_bytes);
+        }
+        for out in ["m.pfm", "m.wtacc", "r.png"] {
+            let _ = std::fs::remove_file(dir.join(out));
+        }
+    }
+    Ok(())
+}
+
+fn dir_listing(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    v.sort();
+    v
+}
