@@ -12,7 +12,7 @@
 //! the very SoA packs and the very Möller–Trumbore kernel of
 //! [`closest_hit_packs`](crate::accel::triangle::closest_hit_packs).
 //! Analytic spheres ([`Sphere`]) come in packs of the same width
-//! ([`SpherePack`](crate::accel::sphere::SpherePack)), tested by the robust
+//! ([`SpherePack`]), tested by the robust
 //! kernel [`intersect_sphere`](crate::accel::sphere::intersect_sphere).
 //!
 //! # Primitive indices
@@ -33,7 +33,7 @@
 //!
 //! # Queries
 //!
-//! One walk ([`walk`]) serves every query: it tests a node's boxes, visits
+//! One walk (`walk`) serves every query: it tests a node's boxes, visits
 //! the children the ray enters (nearest first for closest hits), and hands
 //! each leaf to the query, which keeps the closest hit ([`Bvh::closest_hit`],
 //! [`Bvh::closest_hits`]) or stops at the first ([`Bvh::occluded`],
