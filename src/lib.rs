@@ -17,12 +17,14 @@
 //!    [wavefront engine](integrator::wavefront) (the default).
 //! 5. [`output`]: images (PNG, EXR, PFM) and accumulation files, written
 //!    whole or not at all (and read back); [`metrics`]: an image's errors
-//!    against a reference.
+//!    against a reference (MSE, relMSE, mean ꟻLIP).
 //! 6. [`render`]: the settings of a render and the [`Renderer`](render::Renderer):
 //!    one tile loop, on its own thread pool, for both engines.
 //! 7. [`run`]: long renders in sample passes (time limits, checkpoints,
-//!    signals), farm shards and merges. Library code: it parses no
-//!    arguments and prints nothing.
+//!    signals), farm shards and merges; the benchmark suite
+//!    ([`run::bench`]) and convergence studies ([`run::converge`],
+//!    [`run::plot`]). Library code: it parses no arguments and prints
+//!    nothing.
 //! 8. [`cli`]: the `wavetrace` command — flags, progress bar, messages and
 //!    exit statuses.
 //!

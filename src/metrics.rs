@@ -39,6 +39,33 @@ impl ImageErrors {
     }
 }
 
+/// Mean ꟻLIP (NVIDIA's perceptual difference metric, LDR version; Andersson
+/// et al. 2020, through the `nv-flip` crate and the reference C++ code) of
+/// `image` against `reference`, both linear RGB of `width`×`height`, as
+/// seen in their 8-bit sRGB PNGs ([`srgb8`](crate::output::srgb8)), at the default viewing
+/// condition of 67 pixels per degree. 0 for identical images; at most 1.
+pub fn mean_flip(image: &[[f32; 3]], reference: &[[f32; 3]], width: u32, height: u32) -> f64 {
+    use crate::output::srgb8;
+    mean_flip_srgb8(&srgb8(image), &srgb8(reference), width, height)
+}
+
+/// [`mean_flip`] of two 8-bit sRGB images (row-major RGB bytes).
+pub fn mean_flip_srgb8(image: &[u8], reference: &[u8], width: u32, height: u32) -> f64 {
+    let n = width as usize * height as usize;
+    assert!(
+        image.len() == n * 3 && reference.len() == n * 3,
+        "images of one size"
+    );
+    if n == 0 {
+        return 0.0;
+    }
+    let r = nv_flip::FlipImageRgb8::with_data(width, height, reference);
+    let t = nv_flip::FlipImageRgb8::with_data(width, height, image);
+    let error = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    let sum: f64 = error.to_vec().iter().map(|&e| e as f64).sum();
+    sum / n as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -49,6 +49,14 @@ pub fn srgb_encode(x: f32) -> f32 {
     }
 }
 
+/// The 8-bit sRGB bytes of a linear RGB image, as a PNG holds them:
+/// clamped to [0, 1], sRGB-encoded, rounded.
+pub fn srgb8(rgb: &[[f32; 3]]) -> Vec<u8> {
+    rgb.iter()
+        .flat_map(|p| p.map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0).round() as u8))
+        .collect()
+}
+
 /// Write a linear RGB image (row-major, row 0 at the top) in the format that
 /// `path`'s extension names, atomically.
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
@@ -56,10 +64,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
     let format = ImageFormat::from_path(path)?;
     let written = match format {
         ImageFormat::Png => {
-            let bytes: Vec<u8> = rgb
-                .iter()
-                .flat_map(|p| p.map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0).round() as u8))
-                .collect();
+            let bytes = srgb8(rgb);
             write_atomic(path, |w| {
                 image::write_buffer_with_format(
                     w,

@@ -1,5 +1,7 @@
 //! The command line: `wavetrace render ...` (the default command).
 
+mod bench;
+mod converge;
 mod merge;
 pub(crate) mod profile;
 pub(crate) mod progress;
@@ -10,6 +12,8 @@ use crate::error::Result;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub use bench::BenchArgs;
+pub use converge::ConvergeArgs;
 pub use merge::MergeArgs;
 pub use render::{FarmArgs, RenderArgs};
 
@@ -45,6 +49,11 @@ pub enum Command {
     Render(RenderArgs),
     /// Merge the partial files of shards into the image of the whole render.
     Merge(MergeArgs),
+    /// Run the verified CPU benchmark suite (or compare its JSON files).
+    Bench(BenchArgs),
+    /// Measure how the error falls with samples per pixel (MSE, relMSE,
+    /// mean FLIP against a reference) and find the diminishing-returns point.
+    Converge(ConvergeArgs),
 }
 
 /// Run the command line. Returns the process exit status: 0 when the
@@ -56,5 +65,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         None => render::run(cli.render),
         Some(Command::Render(args)) => render::run(args),
         Some(Command::Merge(args)) => merge::run(args).map(|()| ExitCode::SUCCESS),
+        Some(Command::Bench(args)) => bench::run(args),
+        Some(Command::Converge(args)) => converge::run(args).map(|()| ExitCode::SUCCESS),
     }
 }

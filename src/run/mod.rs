@@ -1,5 +1,8 @@
 //! Running renders: sessions in sample passes, shards and merges.
 
+pub mod bench;
+pub mod converge;
 pub mod merge;
+pub mod plot;
 pub mod session;
 pub mod shard;

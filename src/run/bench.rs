@@ -1,0 +1,662 @@
+//! `wavetrace bench`'s suite: fixed, versioned workloads rendered at fixed
+//! settings, timed at several thread counts, and verified against the image
+//! hashes shipped with the build.
+//!
+//! wavetrace's images are bit-exact across machines and thread counts (the
+//! film sums samples exactly, see [`crate::film`]), so every workload's
+//! image hash is known in advance: [`EXPECTED_HASHES`]. A run whose image
+//! has another hash was miscompiled, ran on unstable hardware, or was built
+//! from rendering code that changed since the table was made. Library code:
+//! it prints nothing; [`BenchObserver`] reports progress.
+
+use crate::error::{Error, Result};
+use crate::film::Film;
+use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, RenderSettings, Renderer};
+use crate::scene::{Integrator, SamplerKind, Scene};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// The version of the suite: bumped whenever a workload's scene or
+/// settings change, so scores of different suites are never compared as
+/// equals. (A change of rendering code changes the hashes, not the suite.)
+pub const SUITE_VERSION: u32 = 1;
+
+/// The source of the million-triangle scene, built in so the suite needs
+/// no files.
+pub const SPHERE_1M_TOML: &str = include_str!("../../scenes/sphere-1m.toml");
+
+/// The expected image hash ([`film_hash`]) of every workload at every
+/// size: `(workload, size, hash)`.
+///
+/// The one place to refresh when rendering code changes the images on
+/// purpose: `cargo test --release --test bench` fails and prints the table
+/// to paste here.
+pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
+    ("cornell-report", SuiteSize::Full, "445d1ea5acbb8385"),
+    ("cornell-report", SuiteSize::Quick, "b0e7e03e999e9e68"),
+    ("cornell-report", SuiteSize::Tiny, "f36c7125eb61d9e7"),
+    ("cornell-default", SuiteSize::Full, "d6ee4442e1276ae3"),
+    ("cornell-default", SuiteSize::Quick, "829ec3d53ade57a7"),
+    ("cornell-default", SuiteSize::Tiny, "8a3046a1d6d5191d"),
+    ("sphere-1m", SuiteSize::Full, "d5706c87ec31503d"),
+    ("sphere-1m", SuiteSize::Quick, "4c33202db1994b10"),
+    ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
+];
+
+/// How big the suite's renders are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SuiteSize {
+    /// The default: about a minute on 2 cores.
+    Full,
+    /// `--quick`: about 10 seconds on 2 cores.
+    Quick,
+    /// For tests of the command itself: a fraction of a second per render
+    /// (plus loading the million-triangle scene).
+    Tiny,
+}
+
+impl SuiteSize {
+    /// The size's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Full => "full",
+            Self::Quick => "quick",
+            Self::Tiny => "tiny",
+        }
+    }
+}
+
+/// Which scene a workload renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchScene {
+    /// The built-in Cornell box ([`Scene::cornell`]).
+    Cornell,
+    /// `scenes/sphere-1m.toml` ([`SPHERE_1M_TOML`]): the Cornell box and a
+    /// geodesic sphere of 1,003,520 triangles, generated on load.
+    Sphere1m,
+}
+
+impl BenchScene {
+    /// The scene, built or generated.
+    pub fn load(self) -> Scene {
+        match self {
+            Self::Cornell => Scene::cornell(),
+            Self::Sphere1m => crate::scene::file::parse(SPHERE_1M_TOML, "scenes/sphere-1m.toml")
+                .expect("the built-in sphere-1m scene parses"),
+        }
+    }
+}
+
+/// One render of the suite, at fixed settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Workload {
+    /// Short name (a key of [`EXPECTED_HASHES`]).
+    pub name: &'static str,
+    /// What it measures, in words.
+    pub description: &'static str,
+    /// The scene.
+    pub scene: BenchScene,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum path depth.
+    pub max_depth: u32,
+    /// Seed.
+    pub seed: u64,
+    /// The estimator.
+    pub integrator: Integrator,
+    /// The sampler.
+    pub sampler: SamplerKind,
+}
+
+impl Workload {
+    /// The render settings of this workload on `threads` threads.
+    pub fn settings(&self, scene: &Scene, threads: usize) -> RenderSettings {
+        let mut s = RenderSettings::for_scene(scene);
+        s.width = self.width;
+        s.height = self.height;
+        s.spp = self.spp;
+        s.max_depth = self.max_depth;
+        s.seed = self.seed;
+        s.threads = threads;
+        s.integrator = self.integrator;
+        s.sampler = self.sampler;
+        s.rr_depth = None;
+        s
+    }
+
+    /// Camera paths one render traces.
+    pub fn paths(&self) -> u64 {
+        self.width as u64 * self.height as u64 * self.spp as u64
+    }
+
+    /// The shipped hash of this workload's image at `size`, if any.
+    pub fn expected_hash(&self, size: SuiteSize) -> Option<&'static str> {
+        EXPECTED_HASHES
+            .iter()
+            .find(|(n, s, _)| *n == self.name && *s == size)
+            .map(|(_, _, h)| *h)
+    }
+}
+
+/// The suite's workloads at `size`. The default integrator workload uses
+/// the build's defaults ([`DEFAULT_INTEGRATOR`], [`DEFAULT_SAMPLER`]).
+pub fn workloads(size: SuiteSize) -> Vec<Workload> {
+    // Samples per pixel of each workload: (report, default, sphere).
+    let (res, spp) = match size {
+        SuiteSize::Full => (256, [384, 288, 192]),
+        SuiteSize::Quick => (256, [64, 48, 32]),
+        SuiteSize::Tiny => (32, [4, 4, 2]),
+    };
+    let w = |name, description, scene, spp, integrator, sampler| Workload {
+        name,
+        description,
+        scene,
+        width: res,
+        height: res,
+        spp,
+        max_depth: 3,
+        seed: 1,
+        integrator,
+        sampler,
+    };
+    vec![
+        w(
+            "cornell-report",
+            "Cornell box, the report's estimator (uniform hemisphere, independent numbers)",
+            BenchScene::Cornell,
+            spp[0],
+            Integrator::Report,
+            SamplerKind::Independent,
+        ),
+        w(
+            "cornell-default",
+            "Cornell box, the default integrator and sampler",
+            BenchScene::Cornell,
+            spp[1],
+            DEFAULT_INTEGRATOR,
+            DEFAULT_SAMPLER,
+        ),
+        w(
+            "sphere-1m",
+            "Cornell box with a 1,003,520-triangle sphere, the report's estimator",
+            BenchScene::Sphere1m,
+            spp[2],
+            Integrator::Report,
+            SamplerKind::Independent,
+        ),
+    ]
+}
+
+/// The hash that verifies an image: 64-bit xxh3 of its size, the samples
+/// it holds and its exact per-pixel sums, as 16 hex digits.
+pub fn film_hash(film: &Film) -> String {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(&film.width.to_le_bytes());
+    h.update(&film.height.to_le_bytes());
+    h.update(&film.samples_per_pixel().to_le_bytes());
+    for p in &film.sums {
+        for c in p {
+            h.update(&c.to_le_bytes());
+        }
+    }
+    format!("{:016x}", h.digest())
+}
+
+/// Render `w` once on `threads` threads (scene already loaded); the film
+/// and its hash.
+pub fn render_workload(w: &Workload, scene: &Scene, threads: usize) -> Result<(Film, String)> {
+    let renderer = Renderer::new(scene, &w.settings(scene, threads))?;
+    let (film, _, _) = renderer.render();
+    let hash = film_hash(&film);
+    Ok((film, hash))
+}
+
+/// The default thread counts on a machine of `cores` cores: 1, the powers
+/// of two below `cores`, and `cores`.
+pub fn default_thread_counts(cores: usize) -> Vec<usize> {
+    let mut t = vec![1];
+    let mut n = 2;
+    while n < cores {
+        t.push(n);
+        n *= 2;
+    }
+    if cores > 1 {
+        t.push(cores);
+    }
+    t
+}
+
+/// What the running machine is.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Machine {
+    /// The CPU's model name (`/proc/cpuinfo`), or "unknown".
+    pub cpu_model: String,
+    /// Threads the process may run at once (`available_parallelism`).
+    pub cores: usize,
+    /// Logical CPUs the kernel lists (`/proc/cpuinfo` processors).
+    pub logical_cpus: usize,
+    /// SIMD extensions the CPU has (detected at run time).
+    pub cpu_simd: Vec<String>,
+    /// Physical memory in bytes (`/proc/meminfo`), 0 if unknown.
+    pub memory_bytes: u64,
+    /// The operating system: `/etc/os-release`'s name and the kernel
+    /// release, or the target's OS name.
+    pub os: String,
+}
+
+impl Machine {
+    /// The running machine.
+    pub fn detect() -> Self {
+        let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let cpu_model = cpuinfo
+            .lines()
+            .find_map(|line| {
+                let (k, v) = line.split_once(':')?;
+                (k.trim() == "model name" && !v.trim().is_empty()).then(|| v.trim().to_string())
+            })
+            .unwrap_or_else(|| "unknown".into());
+        let logical_cpus = cpuinfo
+            .lines()
+            .filter(|l| l.split(':').next().is_some_and(|k| k.trim() == "processor"))
+            .count();
+        let memory_bytes = std::fs::read_to_string("/proc/meminfo")
+            .ok()
+            .and_then(|m| {
+                let line = m.lines().find(|l| l.starts_with("MemTotal:"))?;
+                let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+                Some(kib * 1024)
+            })
+            .unwrap_or(0);
+        let distro = std::fs::read_to_string("/etc/os-release")
+            .ok()
+            .and_then(|t| {
+                t.lines().find_map(|l| {
+                    l.strip_prefix("PRETTY_NAME=")
+                        .map(|v| v.trim_matches('"').to_string())
+                })
+            });
+        let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease")
+            .ok()
+            .map(|k| format!("Linux {}", k.trim()));
+        let os = match (distro, kernel) {
+            (Some(d), Some(k)) => format!("{d}, {k}"),
+            (Some(d), None) => d,
+            (None, Some(k)) => k,
+            (None, None) => std::env::consts::OS.to_string(),
+        };
+        Self {
+            cpu_model,
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            logical_cpus,
+            cpu_simd: cpu_simd(),
+            memory_bytes,
+            os,
+        }
+    }
+}
+
+/// The SIMD extensions the running CPU has, of those wavetrace could use.
+fn cpu_simd() -> Vec<String> {
+    #[allow(unused_mut)]
+    let mut found: Vec<&str> = Vec::new();
+    #[cfg(target_arch = "x86_64")]
+    {
+        macro_rules! detect {
+            ($($f:tt),*) => {$(
+                if std::arch::is_x86_feature_detected!($f) {
+                    found.push($f);
+                }
+            )*};
+        }
+        detect!("sse2", "sse4.1", "sse4.2", "avx", "avx2", "fma", "avx512f");
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        if std::arch::is_aarch64_feature_detected!("neon") {
+            found.push("neon");
+        }
+    }
+    found.into_iter().map(String::from).collect()
+}
+
+/// What the running build is.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Build {
+    /// wavetrace's version.
+    pub version: String,
+    /// The git commit it was built from, or "unknown".
+    pub git_commit: String,
+    /// The SIMD target features it was compiled with.
+    pub target_features: Vec<String>,
+    /// The target's architecture.
+    pub arch: String,
+}
+
+impl Build {
+    /// This build.
+    pub fn this() -> Self {
+        let mut target_features = Vec::new();
+        macro_rules! features {
+            ($($f:tt),*) => {$(
+                if cfg!(target_feature = $f) {
+                    target_features.push($f.to_string());
+                }
+            )*};
+        }
+        features!(
+            "sse2", "sse4.1", "sse4.2", "avx", "avx2", "fma", "avx512f", "neon", "simd128"
+        );
+        Self {
+            version: env!("CARGO_PKG_VERSION").into(),
+            git_commit: env!("WAVETRACE_GIT_COMMIT").into(),
+            target_features,
+            arch: std::env::consts::ARCH.into(),
+        }
+    }
+}
+
+/// A workload's timings at one thread count.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ThreadResult {
+    /// Worker threads.
+    pub threads: usize,
+    /// Render seconds of every repeat, in order.
+    pub seconds: Vec<f64>,
+    /// Their median.
+    pub median_seconds: f64,
+    /// Spread of the repeats: `(max - min) / median`.
+    pub spread: f64,
+    /// Camera paths per render.
+    pub paths: u64,
+    /// Rays per render (closest-hit and shadow rays).
+    pub rays: u64,
+    /// Million paths per second, at the median time.
+    pub mpaths_per_s: f64,
+    /// Million rays per second, at the median time.
+    pub mrays_per_s: f64,
+    /// Speed-up over 1 thread (medians), when 1 thread was run.
+    pub speedup: Option<f64>,
+    /// Scaling efficiency: speed-up ÷ threads.
+    pub efficiency: Option<f64>,
+}
+
+/// A workload's results.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorkloadResult {
+    /// Its name.
+    pub name: String,
+    /// What it measures.
+    pub description: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum path depth.
+    pub max_depth: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Integrator name.
+    pub integrator: String,
+    /// Sampler name.
+    pub sampler: String,
+    /// Triangles in the scene.
+    pub triangles: usize,
+    /// The shipped hash, if the build has one for this size.
+    pub expected_hash: Option<String>,
+    /// Every distinct hash its renders gave (one, on a sound machine).
+    pub hashes: Vec<String>,
+    /// Whether every render gave the shipped hash.
+    pub verified: bool,
+    /// Timings by thread count.
+    pub runs: Vec<ThreadResult>,
+}
+
+/// The overall scores: geometric means over the workloads.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    /// Mpaths/s on 1 thread (when 1 thread was run).
+    pub single_thread_mpaths: Option<f64>,
+    /// Mrays/s on 1 thread.
+    pub single_thread_mrays: Option<f64>,
+    /// The thread count of the all-threads score: the largest run.
+    pub all_threads: usize,
+    /// Mpaths/s on `all_threads` threads.
+    pub all_threads_mpaths: f64,
+    /// Mrays/s on `all_threads` threads.
+    pub all_threads_mrays: f64,
+    /// Mean scaling efficiency at `all_threads` (geometric mean).
+    pub efficiency: Option<f64>,
+}
+
+/// Everything a bench run found: written by `--json`, read by `--compare`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BenchReport {
+    /// [`SUITE_VERSION`].
+    pub suite_version: u32,
+    /// The suite's size.
+    pub size: SuiteSize,
+    /// Repeats per thread count.
+    pub repeats: usize,
+    /// The machine.
+    pub machine: Machine,
+    /// The build.
+    pub build: Build,
+    /// Whether every workload was verified.
+    pub verified: bool,
+    /// Per-workload results.
+    pub workloads: Vec<WorkloadResult>,
+    /// The overall scores.
+    pub scores: Scores,
+    /// Wall-clock seconds of the whole run (loading and setup included).
+    pub wall_seconds: f64,
+}
+
+/// What the suite reports as it goes.
+pub trait BenchObserver {
+    /// The suite starts: `total` units of work (paths ÷ threads, summed over
+    /// every render, roughly proportional to time).
+    fn start(&mut self, total: u64);
+    /// Now at `done` units; `what` says what is running.
+    fn progress(&mut self, done: u64, what: &str);
+    /// The suite is done.
+    fn finish(&mut self);
+}
+
+/// An observer that reports nothing.
+pub struct Silent;
+
+impl BenchObserver for Silent {
+    fn start(&mut self, _: u64) {}
+    fn progress(&mut self, _: u64, _: &str) {}
+    fn finish(&mut self) {}
+}
+
+/// The median of `x` (not empty).
+pub fn median(x: &[f64]) -> f64 {
+    let mut v = x.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The geometric mean of `x` (not empty, positive).
+pub fn geometric_mean(x: &[f64]) -> f64 {
+    (x.iter().map(|v| v.ln()).sum::<f64>() / x.len() as f64).exp()
+}
+
+/// Run the suite: each workload at each of `threads` (sorted, deduplicated),
+/// `repeats` times, verifying every image.
+pub fn run_suite(
+    size: SuiteSize,
+    threads: &[usize],
+    repeats: usize,
+    observer: &mut dyn BenchObserver,
+) -> Result<BenchReport> {
+    let mut threads = threads.to_vec();
+    threads.sort_unstable();
+    threads.dedup();
+    if threads.is_empty() || threads[0] == 0 {
+        return Err(Error::Settings(
+            "bench: thread counts must be at least 1".into(),
+        ));
+    }
+    if repeats == 0 {
+        return Err(Error::Settings("bench: repeats must be at least 1".into()));
+    }
+    let start = Instant::now();
+    let list = workloads(size);
+    let units = |w: &Workload, t: usize| w.paths() / t as u64;
+    let total: u64 = list
+        .iter()
+        .map(|w| threads.iter().map(|&t| units(w, t)).sum::<u64>() * repeats as u64)
+        .sum();
+    observer.start(total);
+    let mut done = 0;
+    let mut results = Vec::new();
+    for w in &list {
+        observer.progress(done, &format!("{}: loading the scene", w.name));
+        let scene = w.scene.load();
+        let expected = w.expected_hash(size);
+        let mut hashes: Vec<String> = Vec::new();
+        let mut runs = Vec::new();
+        let mut t1: Option<f64> = None;
+        for &t in &threads {
+            observer.progress(done, &format!("{}: {t} thread(s), setting up", w.name));
+            let renderer = Renderer::new(&scene, &w.settings(&scene, t))?;
+            let mut seconds = Vec::new();
+            let mut counters = None;
+            for r in 0..repeats {
+                observer.progress(
+                    done,
+                    &format!("{}: {t} thread(s), run {}/{repeats}", w.name, r + 1),
+                );
+                let (film, c, dt) = renderer.render();
+                let hash = film_hash(&film);
+                if !hashes.contains(&hash) {
+                    hashes.push(hash);
+                }
+                seconds.push(dt.as_secs_f64());
+                counters = Some(c);
+                done += units(w, t);
+                observer.progress(done, w.name);
+            }
+            let c = counters.expect("at least one repeat");
+            let med = median(&seconds);
+            let max = seconds.iter().copied().fold(f64::MIN, f64::max);
+            let min = seconds.iter().copied().fold(f64::MAX, f64::min);
+            if t == 1 {
+                t1 = Some(med);
+            }
+            let speedup = t1.map(|t1| t1 / med);
+            runs.push(ThreadResult {
+                threads: t,
+                spread: (max - min) / med,
+                median_seconds: med,
+                seconds,
+                paths: c.paths,
+                rays: c.rays,
+                mpaths_per_s: c.paths as f64 / med / 1e6,
+                mrays_per_s: c.rays as f64 / med / 1e6,
+                speedup,
+                efficiency: speedup.map(|s| s / t as f64),
+            });
+        }
+        let verified = expected.is_some_and(|e| hashes.len() == 1 && hashes[0] == e);
+        results.push(WorkloadResult {
+            name: w.name.into(),
+            description: w.description.into(),
+            width: w.width,
+            height: w.height,
+            spp: w.spp,
+            max_depth: w.max_depth,
+            seed: w.seed,
+            integrator: w.integrator.name().into(),
+            sampler: w.sampler.name().into(),
+            triangles: scene.triangles.len(),
+            expected_hash: expected.map(String::from),
+            hashes,
+            verified,
+            runs,
+        });
+    }
+    observer.finish();
+    let scores = scores(&results);
+    Ok(BenchReport {
+        suite_version: SUITE_VERSION,
+        size,
+        repeats,
+        machine: Machine::detect(),
+        build: Build::this(),
+        verified: results.iter().all(|w| w.verified),
+        workloads: results,
+        scores,
+        wall_seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The overall scores of `results` (every workload run at the same thread
+/// counts).
+pub fn scores(results: &[WorkloadResult]) -> Scores {
+    fn single(r: &[ThreadResult]) -> Option<&ThreadResult> {
+        r.iter().find(|r| r.threads == 1)
+    }
+    fn all(r: &[ThreadResult]) -> Option<&ThreadResult> {
+        r.last()
+    }
+    let at = |pick: fn(&[ThreadResult]) -> Option<&ThreadResult>,
+              f: fn(&ThreadResult) -> Option<f64>| {
+        let v: Option<Vec<f64>> = results.iter().map(|w| pick(&w.runs).and_then(f)).collect();
+        v.filter(|v| !v.is_empty()).map(|v| geometric_mean(&v))
+    };
+    Scores {
+        single_thread_mpaths: at(single, |r| Some(r.mpaths_per_s)),
+        single_thread_mrays: at(single, |r| Some(r.mrays_per_s)),
+        all_threads: results
+            .first()
+            .and_then(|w| w.runs.last())
+            .map_or(0, |r| r.threads),
+        all_threads_mpaths: at(all, |r| Some(r.mpaths_per_s)).unwrap_or(0.0),
+        all_threads_mrays: at(all, |r| Some(r.mrays_per_s)).unwrap_or(0.0),
+        efficiency: at(all, |r| r.efficiency),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thread_counts() {
+        assert_eq!(default_thread_counts(1), vec![1]);
+        assert_eq!(default_thread_counts(2), vec![1, 2]);
+        assert_eq!(default_thread_counts(6), vec![1, 2, 4, 6]);
+        assert_eq!(default_thread_counts(8), vec![1, 2, 4, 8]);
+    }
+
+    #[test]
+    fn statistics() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!((geometric_mean(&[1.0, 4.0]) - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn every_workload_has_a_hash_at_every_size() {
+        for size in [SuiteSize::Full, SuiteSize::Quick, SuiteSize::Tiny] {
+            for w in workloads(size) {
+                assert!(w.expected_hash(size).is_some(), "{} {size:?}", w.name);
+            }
+        }
+    }
+}

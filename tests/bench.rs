@@ -1,0 +1,113 @@
+//! `wavetrace bench`: the shipped image hashes are the images this build
+//! renders, at every suite size; the command runs, writes JSON and
+//! compares it.
+
+mod common;
+
+use common::{TempDir, run_ok, stdout};
+use wavetrace::run::bench::{EXPECTED_HASHES, SuiteSize, render_workload, workloads};
+
+/// Every workload at every size renders the image whose hash is shipped
+/// (the full suite too: about 15 s on 2 cores). On failure, prints the
+/// table to paste into `EXPECTED_HASHES` (src/run/bench.rs).
+#[test]
+fn shipped_hashes_are_the_images_rendered() {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut table = String::new();
+    let mut wrong = Vec::new();
+    for w0 in workloads(SuiteSize::Full) {
+        let scene = w0.scene.load();
+        for size in [SuiteSize::Full, SuiteSize::Quick, SuiteSize::Tiny] {
+            let w = workloads(size)
+                .into_iter()
+                .find(|w| w.name == w0.name)
+                .unwrap();
+            let (_, hash) = render_workload(&w, &scene, threads).unwrap();
+            table += &format!("    ({:?}, SuiteSize::{size:?}, {hash:?}),\n", w.name);
+            if w.expected_hash(size) != Some(hash.as_str()) {
+                wrong.push(format!(
+                    "{} {size:?}: rendered {hash}, shipped {:?}",
+                    w.name,
+                    w.expected_hash(size)
+                ));
+            }
+        }
+    }
+    assert_eq!(EXPECTED_HASHES.len(), 9, "one hash per workload and size");
+    assert!(
+        wrong.is_empty(),
+        "the shipped bench hashes are not what this build renders:\n{}\n\
+         If the images changed on purpose, replace EXPECTED_HASHES in src/run/bench.rs with:\n{table}",
+        wrong.join("\n")
+    );
+}
+
+/// Threads never change the image: 1 thread gives the shipped hash too.
+#[test]
+fn one_thread_gives_the_same_hashes() {
+    for w in workloads(SuiteSize::Tiny) {
+        let (_, hash) = render_workload(&w, &w.scene.load(), 1).unwrap();
+        assert_eq!(
+            Some(hash.as_str()),
+            w.expected_hash(SuiteSize::Tiny),
+            "{}",
+            w.name
+        );
+    }
+}
+
+#[test]
+fn bench_json_and_compare() {
+    let dir = TempDir::new("bench");
+    let o = run_ok(
+        dir.path(),
+        &[
+            "bench",
+            "--tiny",
+            "--repeats",
+            "2",
+            "--threads",
+            "1,2",
+            "--json",
+            "a.json",
+        ],
+    );
+    let out = stdout(&o);
+    assert!(out.contains("VERIFIED: every image matches"), "{out}");
+    assert!(!out.contains("MISMATCH"), "{out}");
+    for w in ["cornell-report", "cornell-default", "sphere-1m"] {
+        assert!(out.contains(w), "{out}");
+    }
+    assert!(out.contains("single thread"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("a.json")).unwrap()).unwrap();
+    assert_eq!(json["verified"], true);
+    assert_eq!(json["size"], "tiny");
+    assert_eq!(json["workloads"].as_array().unwrap().len(), 3);
+    let runs = json["workloads"][0]["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert_eq!(runs[0]["seconds"].as_array().unwrap().len(), 2);
+    assert!(runs[1]["efficiency"].as_f64().unwrap() > 0.0);
+    assert!(json["machine"]["cores"].as_u64().unwrap() >= 1);
+    assert!(!json["build"]["version"].as_str().unwrap().is_empty());
+    assert!(json["scores"]["single_thread_mpaths"].as_f64().unwrap() > 0.0);
+
+    run_ok(
+        dir.path(),
+        &[
+            "bench",
+            "--tiny",
+            "--repeats",
+            "1",
+            "--threads",
+            "1",
+            "--json",
+            "b.json",
+        ],
+    );
+    let o = run_ok(dir.path(), &["bench", "--compare", "a.json", "b.json"]);
+    let out = stdout(&o);
+    assert!(out.contains("a.json") && out.contains("b.json"), "{out}");
+    assert!(out.contains("(1.00x)"), "ratios to the first file: {out}");
+    assert!(out.contains("sphere-1m 1T Mpaths/s"), "{out}");
+}
