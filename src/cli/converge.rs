@@ -1,6 +1,7 @@
 //! `wavetrace converge`: error against samples per pixel for several
 //! estimators, the diminishing-returns point, plots and crops.
 
+use crate::cli::render::named;
 use crate::error::{Error, Result};
 use crate::output::{read_image, write_image};
 use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, RenderSettings};
@@ -76,15 +77,6 @@ pub struct ConvergeArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
-}
-
-fn named<T: Clone + Send + Sync + 'static>(
-    names: &'static [&'static str],
-    from_name: fn(&str) -> Option<T>,
-) -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(names)
-        .map(move |name: String| from_name(&name).expect("one of the possible values"))
 }
 
 /// The JSON file of a study.

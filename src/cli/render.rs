@@ -122,7 +122,7 @@ pub struct RenderArgs {
 
 /// A flag whose value is one of `names`, turned into a `T` by `from_name`
 /// (`--help` lists the names).
-fn named<T: Clone + Send + Sync + 'static>(
+pub(crate) fn named<T: Clone + Send + Sync + 'static>(
     names: &'static [&'static str],
     from_name: fn(&str) -> Option<T>,
 ) -> impl clap::builder::TypedValueParser<Value = T> {

@@ -26,9 +26,10 @@
 //!
 //! [`build`]: binned SAH over the primitives' boxes, whatever their kind
 //! ([`BuildPrim`]); then each leaf's primitives are packed by their kind.
-//! Adding a kind (analytic spheres, say) takes a [`PrimKind`] variant, its
-//! packs beside the triangles', a method for it in the walk's query trait
-//! (each query says what it does at such a leaf), and its arm where the
+//! Adding a kind (triangles and analytic spheres today) takes a
+//! [`PrimKind`] variant, its packs beside the others, their kernel
+//! (`intersect` and `occludes`, behind the walk's one `PackKernel` trait, so
+//! every query handles every kind with one body), and its arm where the
 //! walk dispatches on a leaf's kind.
 //!
 //! # Queries

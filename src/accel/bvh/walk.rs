@@ -71,23 +71,56 @@ pub(crate) trait Query<R: Lanes> {
     fn new(t_max: f32) -> Self;
     /// Boxes the ray enters beyond this are skipped.
     fn cull(&self) -> f32;
-    /// Test a leaf of triangle packs; `true` ends the walk (the answer is
-    /// known). `in_order`: these are all the packs the walk tests, in
-    /// increasing index order (a tree of one leaf).
-    fn triangles(
-        &mut self,
-        r: &PackRay<R>,
-        packs: &[Pack<TrianglePack<R>>],
-        in_order: bool,
-    ) -> bool;
-    /// Test a leaf of sphere packs; as [`Query::triangles`].
-    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool;
+    /// Test a leaf of packs of one kind (triangles or spheres); `true`
+    /// ends the walk (the answer is known). `in_order`: these are all the
+    /// packs the walk tests, in increasing index order (a tree of one
+    /// leaf).
+    fn leaf<P: PackKernel<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool)
+    -> bool;
     /// The answer, once the walk is over.
     fn output(&self) -> Self::Output;
     /// Called at every inner node visited (for statistics).
     #[inline(always)]
     fn node(&mut self) {}
 }
+
+/// A pack of primitives of one kind, as the queries test it: each kind's
+/// own kernel, with the same contract (see [`TrianglePack::intersect`]).
+pub(crate) trait PackKernel<R: Lanes> {
+    /// Keep, lane by lane, the smallest `(t, index)` in `best`.
+    fn intersect<const IN_INDEX_ORDER: bool>(
+        &self,
+        o: &V3<R>,
+        d: &V3<R>,
+        t_min: R,
+        best: &mut PackHits<R>,
+    );
+    /// Whether a primitive of the pack lies at `t_min < t < t_max`.
+    fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool;
+}
+
+macro_rules! pack_kernel {
+    ($pack:ident) => {
+        impl<R: Lanes> PackKernel<R> for $pack<R> {
+            #[inline(always)]
+            fn intersect<const IN_INDEX_ORDER: bool>(
+                &self,
+                o: &V3<R>,
+                d: &V3<R>,
+                t_min: R,
+                best: &mut PackHits<R>,
+            ) {
+                $pack::intersect::<IN_INDEX_ORDER>(self, o, d, t_min, best)
+            }
+            #[inline(always)]
+            fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
+                $pack::occludes(self, o, d, t_min, t_max)
+            }
+        }
+    };
+}
+pack_kernel!(TrianglePack);
+pack_kernel!(SpherePack);
 
 /// A query for both lane types, so a caller can pick the width at run time.
 pub(crate) trait QueryKind {
@@ -127,10 +160,10 @@ impl<R: Lanes> Query<R> for Closest<R> {
         self.cull
     }
     #[inline(always)]
-    fn triangles(
+    fn leaf<P: PackKernel<R>>(
         &mut self,
         r: &PackRay<R>,
-        packs: &[Pack<TrianglePack<R>>],
+        packs: &[Pack<P>],
         in_order: bool,
     ) -> bool {
         let (o, d, t_min) = r.wide();
@@ -138,24 +171,6 @@ impl<R: Lanes> Query<R> for Closest<R> {
         let mut best = self.best;
         if in_order {
             // The whole walk: no cull distance needed after it.
-            for Pack(p) in packs {
-                p.intersect::<true>(&o, &d, t_min, &mut best);
-            }
-            self.best = best;
-            return false;
-        }
-        for Pack(p) in packs {
-            p.intersect::<false>(&o, &d, t_min, &mut best);
-        }
-        self.best = best;
-        self.cull = cull_bound(best.t.min_lane());
-        false
-    }
-    #[inline(always)]
-    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool {
-        let (o, d, t_min) = r.wide();
-        let mut best = self.best;
-        if in_order {
             for Pack(p) in packs {
                 p.intersect::<true>(&o, &d, t_min, &mut best);
             }
@@ -207,23 +222,12 @@ impl<R: Lanes> Query<R> for AnyHit<R> {
         self.cull
     }
     #[inline(always)]
-    fn triangles(
+    fn leaf<P: PackKernel<R>>(
         &mut self,
         r: &PackRay<R>,
-        packs: &[Pack<TrianglePack<R>>],
+        packs: &[Pack<P>],
         _in_order: bool,
     ) -> bool {
-        let (o, d, t_min) = r.wide();
-        for Pack(p) in packs {
-            if p.occludes(&o, &d, t_min, self.t_max) {
-                self.hit = true;
-                return true;
-            }
-        }
-        false
-    }
-    #[inline(always)]
-    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], _in_order: bool) -> bool {
         let (o, d, t_min) = r.wide();
         for Pack(p) in packs {
             if p.occludes(&o, &d, t_min, self.t_max) {
@@ -253,8 +257,8 @@ impl QueryKind for AnyHitKind {
 fn start<R: LanesIn, Q: Query<R>>(bvh: &Bvh, r: &PackRay<R>, q: &mut Q) -> bool {
     let packs = R::packs(bvh);
     let (tris, spheres) = (&packs.unbounded, &packs.unbounded_spheres);
-    (!tris.is_empty() && q.triangles(r, tris, false))
-        || (!spheres.is_empty() && q.spheres(r, spheres, false))
+    (!tris.is_empty() && q.leaf(r, tris, false))
+        || (!spheres.is_empty() && q.leaf(r, spheres, false))
 }
 
 /// Hand the leaf `leaf` to the query, by its kind; true ends the walk.
@@ -268,8 +272,8 @@ fn visit_leaf<R: LanesIn, Q: Query<R>>(
 ) -> bool {
     let (first, count) = leaf.packs();
     match leaf.kind() {
-        0 => q.triangles(r, &R::packs(bvh).triangles[first..first + count], in_order),
-        1 => q.spheres(r, &R::packs(bvh).spheres[first..first + count], in_order),
+        0 => q.leaf(r, &R::packs(bvh).triangles[first..first + count], in_order),
+        1 => q.leaf(r, &R::packs(bvh).spheres[first..first + count], in_order),
         _ => unreachable!("a leaf of an unknown kind"),
     }
 }
@@ -620,21 +624,15 @@ impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
         self.q.cull()
     }
     #[inline(always)]
-    fn triangles(
+    fn leaf<P: PackKernel<R>>(
         &mut self,
         r: &PackRay<R>,
-        packs: &[Pack<TrianglePack<R>>],
+        packs: &[Pack<P>],
         in_order: bool,
     ) -> bool {
         self.stats.leaves += 1;
         self.stats.packs += packs.len() as u64;
-        self.q.triangles(r, packs, in_order)
-    }
-    #[inline(always)]
-    fn spheres(&mut self, r: &PackRay<R>, packs: &[Pack<SpherePack<R>>], in_order: bool) -> bool {
-        self.stats.leaves += 1;
-        self.stats.packs += packs.len() as u64;
-        self.q.spheres(r, packs, in_order)
+        self.q.leaf(r, packs, in_order)
     }
     #[inline(always)]
     fn output(&self) -> Self::Output {
