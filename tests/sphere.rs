@@ -130,6 +130,7 @@ fn make_case(rng: &mut Rng, kind: usize) -> Case {
 /// - hit/miss must agree except where `|δ| < 4 ε (|f| + r) / r` (grazing)
 ///   or a root lies within the `t` tolerance of `t_min`;
 /// - `|t - t_ref| ≤ 8 ε (|f| + r) / |d| · max(1, 1/sqrt(δ))`.
+///
 /// The widths of the hierarchy's sphere packs this CPU runs.
 fn widths() -> Vec<SimdWidth> {
     if !SimdWidth::W16.is_available() {

@@ -236,7 +236,7 @@ fn precheck_obj(bytes: &[u8]) -> Result<Vec<Vec<Vec3>>, (usize, String)> {
                     corners += 1;
                     let parts = corner.split('/').collect::<Vec<_>>();
                     let has_normal = parts.get(2).is_some_and(|p| !p.is_empty());
-                    if corners > 1 && has_normal != !face_normals.is_empty() {
+                    if corners > 1 && has_normal == face_normals.is_empty() {
                         return Err((
                             line_no,
                             "a face gives vertex normals (v//vn, v/vt/vn) to some corners and \
