@@ -178,6 +178,21 @@ pub fn connect<R: Real>(
     (p, n, wo): (V3<R>, V3<R>, V3<R>),
     surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
+    connect_shaded(light, epsilon, (p, n, n, wo), surface)
+}
+
+/// [`connect`] at a smooth surface: the BSDF is evaluated with the shading
+/// facing normal `ns` ([`shading_facing`](super::bsdf::shading_facing)),
+/// and the emitter must also lie above the geometric facing normal `ng`:
+/// light from behind the geometric surface never arrives, whatever the
+/// shading normal says. With `ns == ng` it is [`connect`], bit for bit.
+#[inline(always)]
+pub fn connect_shaded<R: Real>(
+    light: &LightPoint<R>,
+    epsilon: R,
+    (p, ng, n, wo): (V3<R>, V3<R>, V3<R>, V3<R>),
+    surface: &Surface<R>,
+) -> (R::Mask, ShadowRay<R>) {
     let zero = R::splat(0.0);
     let to = light.point - p;
     let dist2 = to.dot(to);
@@ -187,7 +202,7 @@ pub fn connect<R: Real>(
     let cos_light = -light.normal.dot(dir);
     let t_max = dist - epsilon;
     let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir);
-    let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos);
+    let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos) & zero.lt(ng.dot(dir));
     let pdf_light = light.pdf_area * dist2 / cos_light;
     let w = power_heuristic(pdf_light, pdf_bsdf);
     let scale = w / pdf_light;

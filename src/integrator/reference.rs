@@ -27,9 +27,9 @@ use crate::accel::bvh::Bvh;
 use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims, hit_normal};
 use crate::accel::triangle::{Hit, TriangleEdges, hit_point};
 use crate::film::accumulate;
-use crate::integrator::bsdf::{Surface, facing};
+use crate::integrator::bsdf::{Surface, facing, shading_facing};
 use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, connect, emission_weight, survival as survival_of};
+use crate::integrator::nee::{Estimator, connect_shaded, emission_weight, survival as survival_of};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
@@ -206,6 +206,13 @@ impl ReferenceTracer {
         }
 
         let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
+        // Scattering uses the shading normal (smooth triangles: their
+        // vertex normals interpolated at p); sides stay geometric.
+        let shading = self
+            .scene
+            .shading_normal(hit.triangle as usize, p)
+            .unwrap_or(front);
+        let shading = shading_facing(seen_from_front, normal, V3::from(shading), V3::from(-d));
         let surface = self.surface(material);
         let mut beta = beta;
         let mut survival = 1.0;
@@ -221,8 +228,8 @@ impl ReferenceTracer {
         } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);
             if let Some(light) = self.lights.sample(u) {
-                let vertex = (V3::from(p), normal, V3::from(-d));
-                let (valid, shadow) = connect(&light, self.epsilon, vertex, &surface);
+                let vertex = (V3::from(p), normal, shading, V3::from(-d));
+                let (valid, shadow) = connect_shaded(&light, self.epsilon, vertex, &surface);
                 if valid {
                     counters.rays += 1;
                     counters.shadow_rays += 1;
@@ -235,7 +242,7 @@ impl ReferenceTracer {
         }
         let (_lobe, u) = est.bsdf_numbers(sampler, path);
         let report = est.integrator == Integrator::Report;
-        let s = surface.sample(V3::from(front), V3::from(d), u, report);
+        let s = surface.sample_shaded((seen_from_front, normal, shading), V3::from(d), u, report);
         // A delta direction has no density: light sampling could not have
         // found what it hits (MIS weight 1).
         let pdf = if s.delta { 0.0 } else { s.pdf };

@@ -472,6 +472,10 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
 
     // Geometry: triangles, then quads (each split into two triangles).
     let mut triangles = Vec::new();
+    // Per-vertex normals of the triangles that have them (and zeros for
+    // the flat ones before them); filled up to every triangle at the end
+    // if any triangle has them.
+    let mut vertex_normals: Vec<[Vec3; 3]> = Vec::new();
     let polygons = raw
         .triangles
         .iter()
@@ -610,7 +614,9 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             mtl_index.push(materials.len() as u32);
             materials.push(Material::diffuse(&name, om.diffuse, om.emission));
         }
-        for (tri, mat) in obj.triangles.iter().zip(&obj.material) {
+        // Normals go by the inverse transpose of the transform's linear part.
+        let normal_matrix = transform.matrix3.inverse().transpose();
+        for ((tri, mat), normals) in obj.triangles.iter().zip(&obj.material).zip(&obj.normals) {
             let mat = match mat.map(|k| mtl_index[k]).or(fallback) {
                 Some(mat) => mat,
                 None => {
@@ -625,8 +631,25 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
                     ));
                 }
             };
+            let before = triangles.len();
             push_mesh_triangle(&mut triangles, &transform, mesh_ccw, *tri, mat)
                 .map_err(|e| at(m.file.span(), &what, e))?;
+            if let (Some(n), true) = (normals, triangles.len() > before) {
+                // World-space unit normals (a transform that makes one
+                // degenerate leaves that vertex's normal zero: the
+                // interpolation then falls back to the geometric normal
+                // wherever the sum degenerates).
+                let n = n.map(|n| {
+                    let w = (normal_matrix * glam::Vec3A::from(n)).normalize_or_zero();
+                    if w.is_finite() {
+                        Vec3::from(w)
+                    } else {
+                        Vec3::ZERO
+                    }
+                });
+                vertex_normals.resize(before, [Vec3::ZERO; 3]);
+                vertex_normals.push(n);
+            }
         }
     }
     for (i, g) in raw.generated.iter().enumerate() {
@@ -812,6 +835,13 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         }),
         camera,
         materials,
+        vertex_normals: if vertex_normals.is_empty() {
+            vertex_normals
+        } else {
+            let mut v = vertex_normals;
+            v.resize(triangles.len(), [Vec3::ZERO; 3]);
+            v
+        },
         triangles,
         spheres,
         max_depth,

@@ -52,6 +52,40 @@ fn unit_normal(a: Vec3, b: Vec3) -> Vec3 {
     }
 }
 
+/// The shading normal at `p` of a triangle of vertices `v`, vertex normals
+/// `n` and geometric front normal `front`: the vertex normals weighted by
+/// the barycentric coordinates of `p` (computed here from `p`, clamped to
+/// the triangle, so a hit point rounded just outside it stays sensible),
+/// normalised, and turned to the front side (vertex normals that disagree
+/// with the winding are flipped, so the shading normal always lies on the
+/// geometric front). Degenerate results (zero or not finite) give `front`.
+///
+/// The one scalar routine both engines call for smooth triangles, so they
+/// shade with the same bits.
+pub fn interpolate_normal(v: [Vec3; 3], n: [Vec3; 3], front: Vec3, p: Vec3) -> Vec3 {
+    let (e1, e2, ep) = (v[1] - v[0], v[2] - v[0], p - v[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (dp1, dp2) = (ep.dot(e1), ep.dot(e2));
+    let denom = d11 * d22 - d12 * d12;
+    let b1 = ((d22 * dp1 - d12 * dp2) / denom).clamp(0.0, 1.0);
+    let b2 = ((d11 * dp2 - d12 * dp1) / denom).clamp(0.0, 1.0);
+    let (b1, b2) = if b1 + b2 > 1.0 {
+        let s = b1 + b2;
+        (b1 / s, b2 / s)
+    } else {
+        (b1, b2)
+    };
+    let b0 = 1.0 - b1 - b2;
+    let m = n[0] * b0 + n[1] * b1 + n[2] * b2;
+    let m = if m.dot(front) < 0.0 { -m } else { m };
+    let u = m.normalize_or_zero();
+    if u == Vec3::ZERO || !u.is_finite() {
+        front
+    } else {
+        u
+    }
+}
+
 /// A triangle with a material; its front side is the side `normal` points to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
@@ -110,6 +144,13 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// The triangles.
     pub triangles: Vec<Triangle>,
+    /// Per-vertex shading normals of smooth-mesh triangles (OBJ `vn`):
+    /// empty when no triangle has them (every flat scene, so they cost
+    /// nothing there), else one entry per triangle, in the order of
+    /// `triangles`, with `[Vec3::ZERO; 3]` for a flat triangle. Unit,
+    /// world-space, each vertex's normal for `v[k]`; see
+    /// [`Scene::shading_normal`].
+    pub vertex_normals: Vec<[Vec3; 3]>,
     /// The analytic spheres. They follow the triangles in the primitive
     /// numbering of hits: sphere `k` is primitive `triangles.len() + k`.
     pub spheres: Vec<Sphere>,
@@ -160,6 +201,19 @@ impl Scene {
         1e-4 * self.extent()
     }
 
+    /// The shading normal of triangle `i` at the point `p` on it, on its
+    /// front side: its vertex normals interpolated ([`interpolate_normal`]),
+    /// or `None` for a flat triangle (then the geometric normal shades).
+    #[inline]
+    pub fn shading_normal(&self, i: usize, p: Vec3) -> Option<Vec3> {
+        let n = self.vertex_normals.get(i)?;
+        if *n == [Vec3::ZERO; 3] {
+            return None;
+        }
+        let t = &self.triangles[i];
+        Some(interpolate_normal(t.v, *n, t.normal, p))
+    }
+
     /// A 128-bit hash of everything in the scene that changes an image:
     /// geometry, materials and camera (not the name).
     pub fn content_hash(&self) -> u128 {
@@ -199,6 +253,12 @@ impl Scene {
             }
             put(t.normal);
             put(Vec3::splat(t.material as f32));
+        }
+        // (Scenes without vertex normals hash as before they existed.)
+        for n in &self.vertex_normals {
+            for v in n {
+                put(*v);
+            }
         }
         // (Scenes without spheres hash as before spheres existed.)
         for s in &self.spheres {

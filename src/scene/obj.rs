@@ -45,6 +45,9 @@ pub struct ObjMaterial {
 pub struct ObjMesh {
     /// Triangles: three positions each, in the file's winding.
     pub triangles: Vec<[Vec3; 3]>,
+    /// Per triangle: its corners' unit vertex normals (`vn`, in the order
+    /// of its positions), or `None` for a face that gives none (flat).
+    pub normals: Vec<Option<[Vec3; 3]>>,
     /// Per triangle: index into `materials`, or `None` (no `usemtl`, or
     /// one that names no material of the MTL files).
     pub material: Vec<Option<usize>>,
@@ -63,7 +66,7 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
     let bytes = std::fs::read(path).map_err(|e| err(0, format!("cannot read the mesh: {e}")))?;
     // Lossy decoding keeps every newline, so line numbers stay the file's.
     let bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
-    precheck_obj(&bytes).map_err(|(line, m)| err(line, m))?;
+    let faces = precheck_obj(&bytes).map_err(|(line, m)| err(line, m))?;
 
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mtl_error: RefCell<Option<ObjError>> = RefCell::new(None);
@@ -112,6 +115,10 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         materials,
         ..Default::default()
     };
+    // The precheck's faces of three corners or more, in file order: tobj
+    // keeps those, in the same order (its vertex normals are not used:
+    // it makes some up for faces that have none).
+    let mut file_faces = faces.iter();
     for model in &models {
         let m = &model.mesh;
         let pos = |i: u32| -> Option<Vec3> {
@@ -142,12 +149,23 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
             if n < 3 {
                 continue; // no area (the precheck refuses a face of no vertices)
             }
+            let normals = match file_faces.next() {
+                Some(f) if f.len() == n || f.is_empty() => f,
+                _ => {
+                    return Err(err(
+                        0,
+                        "the faces do not match the file's face lines".into(),
+                    ));
+                }
+            };
             // Fan from the first vertex: (0, k, k+1).
             let p0 = pos(face[0]).ok_or_else(bad)?;
             for k in 1..n.saturating_sub(1) {
                 let p1 = pos(face[k]).ok_or_else(bad)?;
                 let p2 = pos(face[k + 1]).ok_or_else(bad)?;
                 mesh.triangles.push([p0, p1, p2]);
+                mesh.normals
+                    .push((!normals.is_empty()).then(|| [normals[0], normals[k], normals[k + 1]]));
                 mesh.material.push(mat);
             }
         }
@@ -155,11 +173,18 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
     Ok(mesh)
 }
 
-/// Check the lines `tobj` would accept without a word: vertices with
-/// non-finite coordinates, and face indices past the vertices defined so
-/// far (or 0, or negative past the first).
-fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
+/// Check the lines `tobj` would accept without a word: vertices and
+/// vertex normals with non-finite coordinates (or normals of length zero),
+/// face indices past the vertices defined so far (or 0, or negative past
+/// the first), normal indices of faces when the file has no `vn` above
+/// them, and faces that give normals to some corners and not others.
+///
+/// Returns, for every face of three corners or more in file order, its
+/// corners' unit vertex normals (empty when it gives none).
+fn precheck_obj(bytes: &[u8]) -> Result<Vec<Vec<Vec3>>, (usize, String)> {
     let (mut v, mut vt, mut vn) = (0usize, 0usize, 0usize);
+    let mut normals: Vec<Vec3> = Vec::new();
+    let mut faces: Vec<Vec<Vec3>> = Vec::new();
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line_no = i + 1;
         let line = String::from_utf8_lossy(raw);
@@ -184,11 +209,41 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                 return Err((line_no, "`mtllib` names no material file".into()));
             }
             Some("vt") => vt += 1,
-            Some("vn") => vn += 1,
+            Some("vn") => {
+                let c: Vec<f32> = words
+                    .take(3)
+                    .map(|c| c.parse::<f32>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| (line_no, "a vertex normal needs three numbers".to_string()))?;
+                let n = match c[..] {
+                    [x, y, z] => Vec3::new(x, y, z),
+                    _ => return Err((line_no, "a vertex normal needs three numbers".into())),
+                };
+                let u = n.normalize_or_zero();
+                if !n.is_finite() || u == Vec3::ZERO || !u.is_finite() {
+                    return Err((
+                        line_no,
+                        format!("vertex normal {n} is not finite and non-zero"),
+                    ));
+                }
+                normals.push(u);
+                vn += 1;
+            }
             Some("f") => {
                 let mut corners = 0usize;
+                let mut face_normals = Vec::new();
                 for corner in words {
                     corners += 1;
+                    let parts = corner.split('/').collect::<Vec<_>>();
+                    let has_normal = parts.get(2).is_some_and(|p| !p.is_empty());
+                    if corners > 1 && has_normal == face_normals.is_empty() {
+                        return Err((
+                            line_no,
+                            "a face gives vertex normals (v//vn, v/vt/vn) to some corners and \
+                             not others"
+                                .into(),
+                        ));
+                    }
                     for (k, part) in corner.split('/').enumerate() {
                         let (what, count) = match k {
                             0 => ("vertex", v),
@@ -205,7 +260,7 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                                 format!("face corner {corner:?}: {part:?} is not an index"),
                             )
                         })?;
-                        if k > 0 && count == 0 {
+                        if k == 1 && count == 0 {
                             continue; // tobj ignores these when there are none
                         }
                         let ok = if x > 0 {
@@ -225,16 +280,27 @@ fn precheck_obj(bytes: &[u8]) -> Result<(), (usize, String)> {
                                 },
                             ));
                         }
+                        if k == 2 {
+                            let i = if x > 0 {
+                                x as usize - 1
+                            } else {
+                                vn - x.unsigned_abs() as usize
+                            };
+                            face_normals.push(normals[i]);
+                        }
                     }
                 }
                 if corners == 0 {
                     return Err((line_no, "a face (`f`) with no vertices".into()));
                 }
+                if corners >= 3 {
+                    faces.push(face_normals);
+                }
             }
             _ => {}
         }
     }
-    Ok(())
+    Ok(faces)
 }
 
 /// Load an MTL file after checking the colours wavetrace reads.

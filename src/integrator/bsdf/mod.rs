@@ -93,6 +93,35 @@ pub fn facing<R: Real>(normal: V3<R>, d: V3<R>) -> (R::Mask, V3<R>) {
     (front, n)
 }
 
+/// The shading normal to scatter with, turned towards the incoming ray:
+/// the shading normal `shading` (on the geometric front side, as
+/// [`Scene::shading_normal`](crate::scene::Scene::shading_normal) gives it)
+/// turned to the side the ray arrived on by the *geometric* test
+/// (`front`, from [`facing`]); where the outgoing direction `wo` lies
+/// below that shading hemisphere (`wo · n_s ≤ 0`, possible at grazing
+/// angles), the geometric facing normal `ng` instead. So `wo` is always
+/// above the normal returned, and scattering never sees a back-facing
+/// `wo`. For a flat surface (`shading` the geometric front normal) it
+/// returns `ng`, bit for bit.
+#[inline(always)]
+pub fn shading_facing<R: Real>(front: R::Mask, ng: V3<R>, shading: V3<R>, wo: V3<R>) -> V3<R> {
+    let ns = V3::select(front, shading, V3::new(-shading.x, -shading.y, -shading.z));
+    V3::select(R::splat(0.0).lt(wo.dot(ns)), ns, ng)
+}
+
+/// Whether `wi` leaves on different sides of the surface by the shading
+/// normal `ns` and by the geometric one `ng` (both facing the same way):
+/// a reflection by the shading frame that would go through the geometry,
+/// or a transmission that would not. Such directions are absorbed (light
+/// must not leak through a surface by its shading normal). Never true for
+/// a flat surface (`ns == ng`).
+#[inline(always)]
+pub fn leaks<R: Real>(ns: V3<R>, ng: V3<R>, wi: V3<R>) -> R::Mask {
+    let zero = R::splat(0.0);
+    let (s, g) = (ns.dot(wi), ng.dot(wi));
+    (zero.lt(s) & g.le(zero)) | (s.le(zero) & zero.lt(g))
+}
+
 /// The mirror image of `w` about the normal `n`: `2 (w · n) n - w`, each
 /// component one fused multiply-add. Either orientation of `n` gives the
 /// same bits.

@@ -2,7 +2,7 @@
 //! [`Model`], for both engines (one lane in the reference tracer, eight
 //! paths of one model at a time in the wavefront engine).
 
-use super::{BsdfSample, diffuse, facing, glass, metal, mirror};
+use super::{BsdfSample, diffuse, facing, glass, leaks, metal, mirror};
 use crate::math::{Real, V3};
 use crate::scene::Model;
 
@@ -47,6 +47,44 @@ impl<R: Real> Surface<R> {
             Model::Mirror => mirror::sample(n, wo, self.tint),
             Model::Glass => glass::sample(normal, wo, self.ior, self.tint, u[0]),
             Model::Metal => metal::sample(n, wo, self.alpha, self.tint, u),
+        }
+    }
+
+    /// [`sample`](Self::sample) at a smooth surface: `front` and `ng`, the
+    /// geometric side and facing normal ([`facing`]), decide the side; the
+    /// shading facing normal `ns` ([`shading_facing`](super::shading_facing))
+    /// orients the lobe (glass takes it turned outward, to the geometric
+    /// front). A direction that [`leaks`] through the geometric surface is
+    /// absorbed: `f = 0`, `cos = 0`, `pdf = 1` (weight exactly zero), as
+    /// the [`BsdfSample`] contract has absorbed samples. With `ns == ng`
+    /// (flat) it is [`sample`](Self::sample), bit for bit.
+    #[inline(always)]
+    pub fn sample_shaded(
+        &self,
+        (front, ng, ns): (R::Mask, V3<R>, V3<R>),
+        d: V3<R>,
+        u: [R; 2],
+        uniform: bool,
+    ) -> BsdfSample<R> {
+        let wo = -d;
+        let s = match self.model {
+            Model::Diffuse if uniform => diffuse::sample_uniform(ns, self.tint, u),
+            Model::Diffuse => diffuse::sample_cosine(ns, self.tint, u),
+            Model::Mirror => mirror::sample(ns, wo, self.tint),
+            Model::Glass => {
+                let outward = V3::select(front, ns, -ns);
+                glass::sample(outward, wo, self.ior, self.tint, u[0])
+            }
+            Model::Metal => metal::sample(ns, wo, self.alpha, self.tint, u),
+        };
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
+        let leak = leaks(ns, ng, s.wi);
+        BsdfSample {
+            wi: s.wi,
+            f: V3::select(leak, V3::new(zero, zero, zero), s.f),
+            cos: R::select(leak, zero, s.cos),
+            pdf: R::select(leak, one, s.pdf),
+            delta: s.delta,
         }
     }
 

@@ -5,6 +5,7 @@
 use super::queue::{PathQueue, load8, store8};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
+use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
@@ -62,7 +63,14 @@ pub fn scatter<S: Sampler>(
         let normal = tables.front_normals(&tris, o, d, t);
 
         let origin = hit_point(o, d, t);
-        let s = surface.sample(normal, d, u, report);
+        let s = if tables.has_smooth() {
+            let (front, ng) = facing(normal, d);
+            let shading = tables.shading_normals(&tris, normal, origin);
+            let ns = shading_facing(front, ng, shading, -d);
+            surface.sample_shaded((front, ng, ns), d, u, report)
+        } else {
+            surface.sample(normal, d, u, report)
+        };
         let beta = s.weigh(beta);
         let pdf = if model.is_delta() { f32x8::ZERO } else { s.pdf };
 

@@ -6,9 +6,9 @@ use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::facing;
+use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::lights::{Emitter, Lights};
-use crate::integrator::nee::{Estimator, ShadowRay, connect};
+use crate::integrator::nee::{Estimator, ShadowRay, connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
 use crate::scene::Model;
@@ -72,9 +72,17 @@ fn sample_lights_8<S: Sampler>(
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
     let p = hit_point(o, d, t);
-    let (_, n) = facing(tables.front_normals(&tris, o, d, t), d);
+    let front = tables.front_normals(&tris, o, d, t);
+    let (seen_from_front, n) = facing(front, d);
     let surface = tables.surfaces(model, &tris);
-    let (valid, ray) = connect(&light, f32x8::splat(tables.epsilon), (p, n, -d), &surface);
+    let eps = f32x8::splat(tables.epsilon);
+    let (valid, ray) = if tables.has_smooth() {
+        let shading = tables.shading_normals(&tris, front, p);
+        let ns = shading_facing(seen_from_front, n, shading, -d);
+        connect_shaded(&light, eps, (p, n, ns, -d), &surface)
+    } else {
+        connect(&light, eps, (p, n, -d), &surface)
+    };
     let valid = valid.to_bitmask();
     if valid != 0 {
         let a = |v: f32x8| v.to_array();

@@ -5,7 +5,7 @@
 use crate::accel::sphere::hit_normal;
 use crate::integrator::bsdf::Surface;
 use crate::math::{V3, Vec3x8};
-use crate::scene::{Material, Model, Scene};
+use crate::scene::{Material, Model, Scene, interpolate_normal};
 use std::f32::consts::PI;
 use wide::f32x8;
 
@@ -35,6 +35,9 @@ pub struct Tables {
     pub alpha: Vec<f32>,
     /// Each material's index of refraction (glass).
     pub ior: Vec<f32>,
+    /// Smooth triangles' vertices and vertex normals, per triangle (empty
+    /// when the scene has none: [`Scene::vertex_normals`]).
+    pub smooth: Vec<([glam::Vec3; 3], [glam::Vec3; 3])>,
     /// Smallest hit distance (see [`Scene::ray_epsilon`]).
     pub epsilon: f32,
 }
@@ -66,6 +69,14 @@ impl Tables {
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
             alpha: scene.materials.iter().map(|m| m.alpha).collect(),
             ior: scene.materials.iter().map(|m| m.ior).collect(),
+            smooth: if scene.vertex_normals.is_empty() {
+                Vec::new()
+            } else {
+                (scene.triangles.iter())
+                    .zip(&scene.vertex_normals)
+                    .map(|(t, n)| (t.v, *n))
+                    .collect()
+            },
             epsilon: scene.ray_epsilon(),
         }
     }
@@ -102,6 +113,41 @@ impl Tables {
                 let n = self.front_normal(p, o[l], d[l], t[l]);
                 (cols[0][l], cols[1][l], cols[2][l]) = (n.x, n.y, n.z);
             }
+        }
+        V3::new(
+            f32x8::from(cols[0]),
+            f32x8::from(cols[1]),
+            f32x8::from(cols[2]),
+        )
+    }
+
+    /// Whether some triangles have vertex normals.
+    #[inline(always)]
+    pub fn has_smooth(&self) -> bool {
+        !self.smooth.is_empty()
+    }
+
+    /// The front shading normals of eight lanes at their hit points `p`:
+    /// for smooth triangles their vertex normals interpolated by the
+    /// scalar [`interpolate_normal`] (as the reference tracer has them,
+    /// through [`Scene::shading_normal`]), else the front normals `front`.
+    #[inline(always)]
+    pub fn shading_normals(&self, prims: &[usize; 8], front: Vec3x8, p: Vec3x8) -> Vec3x8 {
+        if self.smooth.is_empty() {
+            return front;
+        }
+        let (f, p) = (lanes3(front), lanes3(p));
+        let mut cols = [front.x.to_array(), front.y.to_array(), front.z.to_array()];
+        for (l, &prim) in prims.iter().enumerate() {
+            let Some((v, n)) = self.smooth.get(prim) else {
+                continue;
+            };
+            if *n == [glam::Vec3::ZERO; 3] {
+                continue;
+            }
+            let front = glam::Vec3::from(f[l]);
+            let s = interpolate_normal(*v, *n, front, glam::Vec3::from(p[l]));
+            (cols[0][l], cols[1][l], cols[2][l]) = (s.x, s.y, s.z);
         }
         V3::new(
             f32x8::from(cols[0]),
