@@ -292,8 +292,8 @@ impl Denoiser {
         if n == 0 {
             return Err(DenoiseError::Input("the image is empty".into()));
         }
-        let sizes_fit = color.len() == n
-            && aux.is_none_or(|a| a.albedo.len() == n && a.normal.len() == n);
+        let sizes_fit =
+            color.len() == n && aux.is_none_or(|a| a.albedo.len() == n && a.normal.len() == n);
         if !sizes_fit {
             return Err(DenoiseError::Input(format!(
                 "the colour and auxiliary images are not all {width}x{height}"
@@ -318,12 +318,18 @@ impl Denoiser {
                 let mut clean_normal = vec![[0.0f32; 3]; n];
                 self.run_filter(
                     size,
-                    &[("albedo", ptr(&mut albedo)), ("output", ptr(&mut clean_albedo))],
+                    &[
+                        ("albedo", ptr(&mut albedo)),
+                        ("output", ptr(&mut clean_albedo)),
+                    ],
                     &[],
                 )?;
                 self.run_filter(
                     size,
-                    &[("normal", ptr(&mut normal)), ("output", ptr(&mut clean_normal))],
+                    &[
+                        ("normal", ptr(&mut normal)),
+                        ("output", ptr(&mut clean_normal)),
+                    ],
                     &[],
                 )?;
                 self.run_filter(

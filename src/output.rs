@@ -193,7 +193,10 @@ pub fn read_exr_layer(
 ) -> Result<Option<Vec<[f32; 3]>>> {
     use exr::prelude::{ReadChannels, ReadLayers, read};
     let bad = |e: exr::error::Error| {
-        Error::Settings(format!("{}: cannot read the EXR image: {e}", path.display()))
+        Error::Settings(format!(
+            "{}: cannot read the EXR image: {e}",
+            path.display()
+        ))
     };
     // Sizes are checked (against memory) by `read_image` first.
     read_image(path)?;

@@ -23,8 +23,11 @@ pub struct DenoiseArgs {
     pub out: PathBuf,
 }
 
+/// An image's pixels: row-major linear RGB (or XYZ), row 0 at the top.
+type Pixels = Vec<[f32; 3]>;
+
 /// The albedo and normal layers of an EXR image, if it has both.
-pub(crate) fn aux_layers(path: &Path) -> Result<Option<(Vec<[f32; 3]>, Vec<[f32; 3]>)>> {
+pub(crate) fn aux_layers(path: &Path) -> Result<Option<(Pixels, Pixels)>> {
     if ImageFormat::from_path(path)? != ImageFormat::Exr {
         return Ok(None);
     }

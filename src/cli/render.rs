@@ -1,10 +1,10 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
 use crate::accel::simd::SimdWidth;
+use crate::cli::denoise::write_with_aux;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
-use crate::cli::denoise::write_with_aux;
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
