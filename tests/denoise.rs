@@ -172,3 +172,94 @@ const RELMSE_FACTOR: f64 = 8.0;
 /// The mean FLIP factor asserted: measured 1.70 (0.055 noisy, 0.032
 /// denoised).
 const FLIP_FACTOR: f64 = 1.3;
+
+fn wavetrace(dir: &std::path::Path, args: &[&str], path_env: Option<&str>) -> std::process::Output {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_wavetrace"));
+    c.current_dir(dir).args(args).env_remove("OIDN_DIR");
+    if let Some(p) = path_env {
+        // No python3 on PATH (so no pyoidn), and no OIDN_LIB.
+        c.env("PATH", p).env("OIDN_LIB", dir.join("no-such-lib.so"));
+    }
+    c.output().unwrap()
+}
+
+/// Without the library, `--denoise` fails before rendering with a message
+/// that says how to get it; `--keep-noisy` needs `--denoise` and another
+/// file than `--out`. With it, `render --denoise` writes the denoised EXR
+/// with albedo and normal layers (and the noisy one), and `wavetrace
+/// denoise` reads them back.
+#[test]
+fn the_command_line_denoises_or_says_how_to_get_the_library() {
+    let dir = std::env::temp_dir().join(format!("wavetrace-denoise-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let small = ["--width", "32", "--height", "24", "--spp", "4"];
+    fn with<'a>(small: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
+        [small, extra].concat()
+    }
+    let o = wavetrace(
+        &dir,
+        &with(&small, &["--denoise", "--out", "d.exr"]),
+        Some("/nonexistent"),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.success() {
+        eprintln!("SKIPPED the missing-library check: OIDN is on the system loader's path");
+    } else {
+        assert!(
+            err.contains("pip install pyoidn") && err.contains("OIDN_DIR"),
+            "{err}"
+        );
+        assert!(!dir.join("d.exr").exists(), "nothing is rendered");
+    }
+    let o = wavetrace(
+        &dir,
+        &with(&small, &["--keep-noisy", "n.exr", "--out", "d.exr"]),
+        None,
+    );
+    assert!(!o.status.success());
+    let o = wavetrace(
+        &dir,
+        &with(
+            &small,
+            &["--denoise", "--keep-noisy", "d.exr", "--out", "d.exr"],
+        ),
+        None,
+    );
+    assert!(!o.status.success());
+
+    if denoiser_or_skip("render --denoise").is_none() {
+        std::fs::remove_dir_all(&dir).unwrap();
+        return;
+    }
+    let o = wavetrace(
+        &dir,
+        &with(
+            &small,
+            &["--denoise", "--keep-noisy", "n.exr", "--out", "d.exr"],
+        ),
+        None,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = dir.join("d.exr");
+    let noisy = read_image(&dir.join("n.exr")).unwrap();
+    let denoised = read_image(&d).unwrap();
+    assert_eq!((denoised.width, denoised.height), (32, 24));
+    assert_ne!(bits(&noisy.rgb), bits(&denoised.rgb));
+    let albedo = read_exr_layer(&d, ALBEDO_LAYER.0, ALBEDO_LAYER.1)
+        .unwrap()
+        .unwrap();
+    let normal = read_exr_layer(&d, NORMAL_LAYER.0, NORMAL_LAYER.1)
+        .unwrap()
+        .unwrap();
+    let scene = Scene::cornell();
+    let mut s = RenderSettings::for_scene(&scene);
+    (s.width, s.height, s.spp) = (32, 24, 4);
+    let expected = aovs(&s);
+    assert_eq!(bits(&albedo), bits(&expected.albedo));
+    assert_eq!(bits(&normal), bits(&expected.normal));
+    let o = wavetrace(&dir, &["denoise", "n.exr", "--out", "again.pfm"], None);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("with albedo and normal"));
+    assert_eq!(read_image(&dir.join("again.pfm")).unwrap().width, 32);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

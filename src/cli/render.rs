@@ -334,6 +334,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         if let Some(noisy) = &args.keep_noisy {
             check_output_format(noisy)?;
             check_writable(noisy)?;
+            check_distinct(&[("--out", out.as_deref()), ("--keep-noisy", Some(noisy))])?;
         }
         Some(Denoiser::new()?)
     } else {
