@@ -411,7 +411,7 @@ impl Renderer {
         &self.settings
     }
 
-    /// The albedo and normal buffers ([`aov`](crate::integrator::aov)) of
+    /// The albedo and normal buffers ([`aov`]) of
     /// this render, over its first `min(spp, 16)` camera samples per pixel,
     /// on the render's threads. `scene` must be the scene this renderer was
     /// made for.
