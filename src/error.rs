@@ -1,5 +1,6 @@
 //! The library's error type: every failure carries its kind and its place.
 
+use crate::denoise::DenoiseError;
 use crate::film::WtaccError;
 use crate::film::ranges::MissingSamples;
 use crate::fs::FileError;
@@ -30,6 +31,10 @@ pub enum Error {
     /// Partial files that, merged, lack some samples of the render.
     #[error("merge: {0}")]
     Incomplete(#[from] MissingSamples),
+    /// Denoising failed, or its library is missing (the message says how
+    /// to install it).
+    #[error(transparent)]
+    Denoise(#[from] DenoiseError),
 }
 
 /// `Result` with [`Error`].

@@ -17,7 +17,8 @@
 //!    [wavefront engine](integrator::wavefront) (the default).
 //! 5. [`output`]: images (PNG, EXR, PFM) and accumulation files, written
 //!    whole or not at all (and read back); [`metrics`]: an image's errors
-//!    against a reference (MSE, relMSE, mean ꟻLIP).
+//!    against a reference (MSE, relMSE, mean ꟻLIP); [`denoise`]: Intel Open
+//!    Image Denoise, loaded at run time.
 //! 6. [`render`]: the settings of a render and the [`Renderer`](render::Renderer):
 //!    one tile loop, on its own thread pool, for both engines.
 //! 7. [`run`]: long renders in sample passes (time limits, checkpoints,
@@ -60,6 +61,7 @@
 
 pub mod accel;
 pub mod cli;
+pub mod denoise;
 pub mod error;
 pub mod film;
 pub mod fs;

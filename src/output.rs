@@ -119,6 +119,110 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
     Ok(written?)
 }
 
+/// A layer of three channels of a multi-layer EXR image, beside the
+/// colour (`R`, `G`, `B`): channels `name.c` for each `c` of `channels`.
+#[derive(Clone, Copy, Debug)]
+pub struct ExrLayer<'a> {
+    /// The layer's name (`albedo`).
+    pub name: &'a str,
+    /// Its channels' names within the layer (`R`, `G`, `B`).
+    pub channels: [&'a str; 3],
+    /// Row-major pixels, row 0 at the top.
+    pub pixels: &'a [[f32; 3]],
+}
+
+/// The albedo layer's name and channels in wavetrace's EXR images.
+pub const ALBEDO_LAYER: (&str, [&str; 3]) = ("albedo", ["R", "G", "B"]);
+/// The normal layer's name and channels in wavetrace's EXR images.
+pub const NORMAL_LAYER: (&str, [&str; 3]) = ("normal", ["X", "Y", "Z"]);
+
+/// Write a multi-layer OpenEXR image, atomically: the colour `rgb` as
+/// channels `R`, `G`, `B` and each of `layers` as `name.channel`, all
+/// 32-bit float, in one part (as Blender and OIDN's tools name them).
+pub fn write_exr_layers(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[[f32; 3]],
+    layers: &[ExrLayer<'_>],
+) -> Result<()> {
+    use exr::prelude::*;
+    let n = width as usize * height as usize;
+    assert_eq!(rgb.len(), n);
+    let plane = |pixels: &[[f32; 3]], c: usize| -> FlatSamples {
+        FlatSamples::F32(pixels.iter().map(|p| p[c]).collect())
+    };
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+        list.push(AnyChannel::new(name, plane(rgb, c)));
+    }
+    for layer in layers {
+        assert_eq!(layer.pixels.len(), n);
+        for (c, channel) in layer.channels.into_iter().enumerate() {
+            let name = format!("{}.{channel}", layer.name);
+            list.push(AnyChannel::new(name.as_str(), plane(layer.pixels, c)));
+        }
+    }
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        encoding,
+        AnyChannels::sort(list),
+    );
+    let image = Image::from_layer(layer);
+    Ok(write_atomic(path, |w| {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        image
+            .write()
+            .to_buffered(&mut buf)
+            .map_err(std::io::Error::other)?;
+        w.write_all(buf.get_ref())
+    })?)
+}
+
+/// Read the layer `name` (channels `name.c` for each of `channels`) of an
+/// OpenEXR image's first part: `None` when any of its channels is missing.
+pub fn read_exr_layer(
+    path: &Path,
+    name: &str,
+    channels: [&str; 3],
+) -> Result<Option<Vec<[f32; 3]>>> {
+    use exr::prelude::{ReadChannels, ReadLayers, read};
+    let bad = |e: exr::error::Error| {
+        Error::Settings(format!(
+            "{}: cannot read the EXR image: {e}",
+            path.display()
+        ))
+    };
+    // Sizes are checked (against memory) by `read_image` first.
+    read_image(path)?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(bad)?;
+    let list = &image.layer_data.channel_data.list;
+    let n = image.layer_data.size.0 * image.layer_data.size.1;
+    let mut out = vec![[0.0f32; 3]; n];
+    for (c, channel) in channels.into_iter().enumerate() {
+        let full = format!("{name}.{channel}");
+        let Some(found) = list.iter().find(|ch| ch.name.to_string() == full) else {
+            return Ok(None);
+        };
+        for (p, v) in out.iter_mut().zip(found.sample_data.values_as_f32()) {
+            p[c] = v;
+        }
+    }
+    Ok(Some(out))
+}
+
 /// Whether `path` names a partial (accumulation) file: a `.wtacc` extension.
 pub fn is_partial_path(path: &Path) -> bool {
     path.extension()

@@ -4,6 +4,7 @@ use crate::accel::bvh::{Bvh, BvhOptions};
 use crate::accel::simd::SimdWidth;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSum};
+use crate::integrator::aov::{self, Aovs, aov_samples};
 use crate::integrator::nee::Estimator;
 use crate::integrator::reference::ReferenceTracer;
 use crate::integrator::sampler::{Independent, Sampler, Sobol};
@@ -408,6 +409,24 @@ impl Renderer {
     /// The settings this renderer was made for.
     pub fn settings(&self) -> &RenderSettings {
         &self.settings
+    }
+
+    /// The albedo and normal buffers ([`aov`]) of
+    /// this render, over its first `min(spp, 16)` camera samples per pixel,
+    /// on the render's threads. `scene` must be the scene this renderer was
+    /// made for.
+    pub fn aovs(&self, scene: &Scene) -> Aovs {
+        let s = &self.settings;
+        let tracer = ReferenceTracer::with_bvh(scene, s.max_depth, self.bvh.clone());
+        let size = (s.width, s.height);
+        let samples = aov_samples(s.spp);
+        let camera = &self.frame.camera;
+        self.pool.install(|| match s.sampler {
+            SamplerKind::Independent => {
+                aov::compute(&tracer, camera, &Independent::new(s.seed), size, samples)
+            }
+            SamplerKind::Sobol => aov::compute(&tracer, camera, &Sobol::new(s.seed), size, samples),
+        })
     }
 
     /// A new, empty film of the right size.

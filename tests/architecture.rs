@@ -4,7 +4,7 @@
 //! others.
 //!
 //! The layers, in order: `math`, `fs` → `scene` → `accel` → `film` →
-//! `integrator` → `output`, `metrics` → `render` → `run` → `cli`. `error` (the
+//! `integrator` → `output`, `metrics`, `denoise` → `render` → `run` → `cli`. `error` (the
 //! library's `Error`) wraps the typed errors of several layers, so it may
 //! name the modules that define them — and those modules never return
 //! `crate::Error` themselves (the cycle check below holds them to it).
@@ -25,14 +25,14 @@ const LAYERS: &[&[&str]] = &[
     &["accel"],
     &["film"],
     &["integrator"],
-    &["output", "metrics"],
+    &["output", "metrics", "denoise"],
     &["render"],
     &["run"],
     &["cli"],
 ];
 
 /// What `error` may use: the modules that define the errors it wraps.
-const ERROR_WRAPS: &[&str] = &["scene", "film", "fs", "run"];
+const ERROR_WRAPS: &[&str] = &["scene", "film", "fs", "run", "denoise"];
 
 /// The source of every module, by path (`integrator::wavefront::queue`);
 /// `lib` and `main` are the crate root.

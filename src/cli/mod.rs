@@ -2,6 +2,7 @@
 
 mod bench;
 mod converge;
+mod denoise;
 mod merge;
 pub(crate) mod profile;
 pub(crate) mod progress;
@@ -14,6 +15,7 @@ use std::process::ExitCode;
 
 pub use bench::BenchArgs;
 pub use converge::ConvergeArgs;
+pub use denoise::DenoiseArgs;
 pub use merge::MergeArgs;
 pub use render::{FarmArgs, RenderArgs};
 
@@ -54,6 +56,9 @@ pub enum Command {
     /// Measure how the error falls with samples per pixel (MSE, relMSE,
     /// mean FLIP against a reference) and find the diminishing-returns point.
     Converge(ConvergeArgs),
+    /// Denoise an image rendered earlier with Intel Open Image Denoise
+    /// (guided by its albedo and normal layers when it has them).
+    Denoise(DenoiseArgs),
 }
 
 /// Run the command line. Returns the process exit status: 0 when the
@@ -67,5 +72,6 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Some(Command::Merge(args)) => merge::run(args).map(|()| ExitCode::SUCCESS),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Converge(args)) => converge::run(args).map(|()| ExitCode::SUCCESS),
+        Some(Command::Denoise(args)) => denoise::run(args).map(|()| ExitCode::SUCCESS),
     }
 }

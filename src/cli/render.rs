@@ -1,9 +1,11 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
 use crate::accel::simd::SimdWidth;
+use crate::cli::denoise::write_with_aux;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
+use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
 use crate::fs::{check_writable, same_file, write_atomic};
@@ -115,6 +117,15 @@ pub struct RenderArgs {
     /// the partial file of a shard).
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub write_partial: Option<Duration>,
+    /// Denoise the final image with Intel Open Image Denoise (OIDN 2.x,
+    /// loaded at run time: `pip install pyoidn`, or set OIDN_DIR), guided by
+    /// albedo and normal buffers; --out gets the denoised image (an .exr
+    /// also gets layers albedo and normal).
+    #[arg(long)]
+    pub denoise: bool,
+    /// With --denoise: also write the raw (noisy) image to this file.
+    #[arg(long, value_name = "FILE", requires = "denoise")]
+    pub keep_noisy: Option<PathBuf>,
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
     pub farm: FarmArgs,
@@ -216,6 +227,10 @@ struct Job {
     session: SessionOptions,
     /// `--reference`: its path and pixels, checked to be of the render's size.
     reference: Option<(PathBuf, Vec<[f32; 3]>)>,
+    /// `--denoise`: the denoiser, loaded before any work starts.
+    denoiser: Option<Denoiser>,
+    /// `--keep-noisy`.
+    keep_noisy: Option<PathBuf>,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -307,6 +322,24 @@ fn plan(args: RenderArgs) -> Result<Job> {
     if let Some(stats) = &args.stats {
         check_writable(stats)?;
     }
+    let denoiser = if args.denoise {
+        match &out {
+            Some(out) if !crate::output::is_partial_path(out) => {}
+            _ => {
+                return Err(Error::Settings(
+                    "--denoise needs --out IMAGE (.exr, .pfm or .png), not a partial file".into(),
+                ));
+            }
+        }
+        if let Some(noisy) = &args.keep_noisy {
+            check_output_format(noisy)?;
+            check_writable(noisy)?;
+            check_distinct(&[("--out", out.as_deref()), ("--keep-noisy", Some(noisy))])?;
+        }
+        Some(Denoiser::new()?)
+    } else {
+        None
+    };
 
     let meta = AccMeta {
         settings_hash: settings.image_hash(&scene),
@@ -425,6 +458,8 @@ fn plan(args: RenderArgs) -> Result<Job> {
         resume: args.resume,
         session,
         reference,
+        denoiser,
+        keep_noisy: args.keep_noisy,
     })
 }
 
@@ -558,9 +593,52 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         }
     }
     let mut errors = Vec::new();
+    // --denoise: the AOVs and the denoised image, for the final --out.
+    let denoised = match (&mut job.denoiser, report.stop) {
+        (Some(denoiser), Stop::Complete | Stop::TimeLimit) => {
+            let t = Instant::now();
+            let aovs = renderer.aovs(&job.scene);
+            let aov_seconds = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let aux = Aux {
+                albedo: &aovs.albedo,
+                normal: &aovs.normal,
+            };
+            let rgb = denoiser.denoise(film.width, film.height, &film.to_rgb(), Some(aux))?;
+            if !quiet {
+                eprintln!(
+                    "denoise: albedo and normal in {aov_seconds:.3} s, denoised in {:.3} s ({})",
+                    t.elapsed().as_secs_f64(),
+                    denoiser.library_path().display()
+                );
+            }
+            if let Some(noisy) = &job.keep_noisy {
+                files.insert(0, (noisy.clone(), true, false));
+            }
+            Some((rgb, aovs))
+        }
+        _ => None,
+    };
     for (path, is_final, is_partial_file) in files {
         let t = Instant::now();
-        let r = write_output(&path, film, &job.meta);
+        let is_out = is_final && !is_partial_file && job.out.as_ref() == Some(&path);
+        let r = match &denoised {
+            Some((rgb, aovs)) if is_out => {
+                let aux = Aux {
+                    albedo: &aovs.albedo,
+                    normal: &aovs.normal,
+                };
+                write_with_aux(&path, (film.width, film.height), rgb, Some(aux))
+            }
+            Some((_, aovs)) if is_final && !is_partial_file => {
+                let aux = Aux {
+                    albedo: &aovs.albedo,
+                    normal: &aovs.normal,
+                };
+                write_with_aux(&path, (film.width, film.height), &film.to_rgb(), Some(aux))
+            }
+            _ => write_output(&path, film, &job.meta),
+        };
         let secs = t.elapsed().as_secs_f64();
         if is_final {
             stages.output += secs;

@@ -5,7 +5,8 @@
 //!   scalar and 8-wide code;
 //! - [`reference`](mod@reference): the scalar recursive reference tracer
 //!   (the oracle);
-//! - [`wavefront`]: the SIMD wavefront engine (the default).
+//! - [`wavefront`]: the SIMD wavefront engine (the default);
+//! - [`aov`]: albedo and normal buffers for the denoiser.
 //!
 //! Both engines render a [`TileJob`] — samples of a run of pixels into
 //! those pixels' sums — and count their work in [`Counters`]. The two differ
@@ -13,6 +14,7 @@
 //! routines and the acceleration structure, so they trace the very same
 //! paths.
 
+pub mod aov;
 pub mod bsdf;
 pub mod lights;
 pub mod nee;

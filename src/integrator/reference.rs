@@ -258,6 +258,37 @@ impl ReferenceTracer {
         radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival
     }
 
+    /// The albedo and facing shading normal of the first non-specular
+    /// surface the ray `o + t·d` meets, following mirrors and glass (their
+    /// direction drawn with `sampler`'s next numbers at `path`), within the
+    /// tracer's maximum depth; `None` when the ray leaves the scene first.
+    /// Albedo is the material's reflectance clamped to [0, 1] (what OIDN
+    /// expects of its albedo buffer).
+    pub fn first_surface<S: Sampler>(
+        &self,
+        sampler: &S,
+        path: &mut S::Path,
+        (mut o, mut d): (Vec3, Vec3),
+    ) -> Option<(Vec3, Vec3)> {
+        for _ in 0..self.estimator.max_depth.max(1) {
+            let hit = self.closest_hit(o, d)?;
+            let (material, front) = self.hit_surface(hit, o, d);
+            let material = &self.scene.materials[material as usize];
+            let (_, normal) = facing(V3::from(front), V3::from(d));
+            if !material.model.is_delta() {
+                let albedo = material.reflectance.clamp(Vec3::ZERO, Vec3::ONE);
+                return Some((albedo, Vec3::from(normal)));
+            }
+            let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
+            let u = sampler.next_2d(path);
+            let s = self
+                .surface(material)
+                .sample(V3::from(front), V3::from(d), u, false);
+            (o, d) = (p, Vec3::from(s.wi));
+        }
+        None
+    }
+
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the
     /// pixel's area, traced from depth 0.
     pub fn sample<S: Sampler>(
