@@ -224,14 +224,7 @@ impl<R: Lanes> SpherePack<R> {
         best: &mut PackHits<R>,
     ) {
         let (hit, t) = intersect_sphere(*o, *d, self.center, self.radius, t_min);
-        let closer = if IN_INDEX_ORDER {
-            hit & t.lt(best.t)
-        } else {
-            let idx_lt = R::index_lt(self.index, best.index);
-            hit & (t.lt(best.t) | (t.eq(best.t) & idx_lt))
-        };
-        best.t = R::select(closer, t, best.t);
-        best.index = R::index_select(closer, self.index, best.index);
+        best.keep::<IN_INDEX_ORDER>(hit, t, self.index);
     }
 
     /// Whether the ray hits one of the pack's spheres at a distance

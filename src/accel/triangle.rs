@@ -264,6 +264,24 @@ pub struct PackHits<R: Lanes> {
     pub index: R::Index,
 }
 
+impl<R: Lanes> PackHits<R> {
+    /// Keep, lane by lane, the hit `(t, index)` where `hit` is set and it
+    /// is smaller than the best so far — by `t`, then by index, unless
+    /// `IN_INDEX_ORDER` (the caller tests primitives in increasing index
+    /// order, so an equal `t` never wins). Every pack kernel ends here.
+    #[inline(always)]
+    pub fn keep<const IN_INDEX_ORDER: bool>(&mut self, hit: R::Mask, t: R, index: R::Index) {
+        let closer = if IN_INDEX_ORDER {
+            hit & t.lt(self.t)
+        } else {
+            let idx_lt = R::index_lt(index, self.index);
+            hit & (t.lt(self.t) | (t.eq(self.t) & idx_lt))
+        };
+        self.t = R::select(closer, t, self.t);
+        self.index = R::index_select(closer, index, self.index);
+    }
+}
+
 /// [`PackHits`] for 8 lanes.
 pub type LaneHits = PackHits<f32x8>;
 
@@ -343,14 +361,7 @@ impl<R: Lanes> TrianglePack<R> {
         best: &mut PackHits<R>,
     ) {
         let (inside, t) = moller_trumbore(*o, *d, &self.tri, t_min);
-        let closer = if IN_INDEX_ORDER {
-            inside & t.lt(best.t)
-        } else {
-            let idx_lt = R::index_lt(self.index, best.index);
-            inside & (t.lt(best.t) | (t.eq(best.t) & idx_lt))
-        };
-        best.t = R::select(closer, t, best.t);
-        best.index = R::index_select(closer, self.index, best.index);
+        best.keep::<IN_INDEX_ORDER>(inside, t, self.index);
     }
 
     /// Whether the ray hits one of the pack's triangles at a distance
