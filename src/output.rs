@@ -92,12 +92,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
         ImageFormat::Exr => {
             use exr::prelude::*;
             let (w_, h_) = (width as usize, height as usize);
-            // Blocks in increasing order: compressed in parallel, but
-            // written in one order, so the same image gives the same bytes.
-            let encoding = Encoding {
-                line_order: LineOrder::Increasing,
-                ..Encoding::FAST_LOSSLESS
-            };
+            let encoding = exr_encoding();
             let image = Image::from_encoded_channels(
                 (w_, h_),
                 encoding,
@@ -106,14 +101,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
                     (p[0], p[1], p[2])
                 }),
             );
-            write_atomic(path, |w| {
-                let mut buf = std::io::Cursor::new(Vec::new());
-                image
-                    .write()
-                    .to_buffered(&mut buf)
-                    .map_err(std::io::Error::other)?;
-                w.write_all(buf.get_ref())
-            })
+            write_exr(path, |buf| image.write().to_buffered(buf))
         }
     };
     Ok(written?)
@@ -163,10 +151,7 @@ pub fn write_exr_layers(
             list.push(AnyChannel::new(name.as_str(), plane(layer.pixels, c)));
         }
     }
-    let encoding = Encoding {
-        line_order: LineOrder::Increasing,
-        ..Encoding::FAST_LOSSLESS
-    };
+    let encoding = exr_encoding();
     let layer = Layer::new(
         (width as usize, height as usize),
         LayerAttributes::default(),
@@ -174,14 +159,30 @@ pub fn write_exr_layers(
         AnyChannels::sort(list),
     );
     let image = Image::from_layer(layer);
-    Ok(write_atomic(path, |w| {
+    Ok(write_exr(path, |buf| image.write().to_buffered(buf))?)
+}
+
+/// How every OpenEXR image is encoded: lossless, its blocks compressed in
+/// parallel but written in increasing order, so the same image gives the
+/// same bytes.
+fn exr_encoding() -> exr::prelude::Encoding {
+    exr::prelude::Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..exr::prelude::Encoding::FAST_LOSSLESS
+    }
+}
+
+/// Write an OpenEXR image atomically: `encode` writes it whole into a
+/// buffer, which then goes to the file.
+fn write_exr(
+    path: &Path,
+    encode: impl FnOnce(&mut std::io::Cursor<Vec<u8>>) -> exr::error::UnitResult,
+) -> std::result::Result<(), FileError> {
+    write_atomic(path, |w| {
         let mut buf = std::io::Cursor::new(Vec::new());
-        image
-            .write()
-            .to_buffered(&mut buf)
-            .map_err(std::io::Error::other)?;
+        encode(&mut buf).map_err(std::io::Error::other)?;
         w.write_all(buf.get_ref())
-    })?)
+    })
 }
 
 /// Read the layer `name` (channels `name.c` for each of `channels`) of an
