@@ -107,18 +107,10 @@ impl Tables {
             return n;
         }
         let (o, d, t) = (lanes3(o), lanes3(d), t.to_array());
-        let mut cols = [n.x.to_array(), n.y.to_array(), n.z.to_array()];
-        for (l, &p) in prims.iter().enumerate() {
-            if p >= self.first_sphere {
-                let n = self.front_normal(p, o[l], d[l], t[l]);
-                (cols[0][l], cols[1][l], cols[2][l]) = (n.x, n.y, n.z);
-            }
-        }
-        V3::new(
-            f32x8::from(cols[0]),
-            f32x8::from(cols[1]),
-            f32x8::from(cols[2]),
-        )
+        replace_lanes(n, |l| {
+            let p = prims[l];
+            (p >= self.first_sphere).then(|| self.front_normal(p, o[l], d[l], t[l]))
+        })
     }
 
     /// Whether some triangles have vertex normals.
@@ -137,23 +129,19 @@ impl Tables {
             return front;
         }
         let (f, p) = (lanes3(front), lanes3(p));
-        let mut cols = [front.x.to_array(), front.y.to_array(), front.z.to_array()];
-        for (l, &prim) in prims.iter().enumerate() {
-            let Some((v, n)) = self.smooth.get(prim) else {
-                continue;
-            };
+        replace_lanes(front, |l| {
+            let (v, n) = self.smooth.get(prims[l])?;
             if *n == [glam::Vec3::ZERO; 3] {
-                continue;
+                return None;
             }
             let front = glam::Vec3::from(f[l]);
-            let s = interpolate_normal(*v, *n, front, glam::Vec3::from(p[l]));
-            (cols[0][l], cols[1][l], cols[2][l]) = (s.x, s.y, s.z);
-        }
-        V3::new(
-            f32x8::from(cols[0]),
-            f32x8::from(cols[1]),
-            f32x8::from(cols[2]),
-        )
+            Some(V3::from(interpolate_normal(
+                *v,
+                *n,
+                front,
+                glam::Vec3::from(p[l]),
+            )))
+        })
     }
 
     /// The model of the material of primitive `tri`.
@@ -202,4 +190,16 @@ impl Tables {
 fn lanes3(v: Vec3x8) -> [V3<f32>; 8] {
     let (x, y, z) = (v.x.to_array(), v.y.to_array(), v.z.to_array());
     std::array::from_fn(|l| V3::new(x[l], y[l], z[l]))
+}
+
+/// `v` with lane `l` replaced by `new(l)` where that is `Some`.
+#[inline(always)]
+fn replace_lanes(v: Vec3x8, mut new: impl FnMut(usize) -> Option<V3<f32>>) -> Vec3x8 {
+    let (mut x, mut y, mut z) = (v.x.to_array(), v.y.to_array(), v.z.to_array());
+    for (l, ((x, y), z)) in x.iter_mut().zip(&mut y).zip(&mut z).enumerate() {
+        if let Some(n) = new(l) {
+            (*x, *y, *z) = (n.x, n.y, n.z);
+        }
+    }
+    V3::new(f32x8::from(x), f32x8::from(y), f32x8::from(z))
 }
