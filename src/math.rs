@@ -318,9 +318,57 @@ pub fn sin_cos_2pi<R: Real>(x: R) -> (R, R) {
     (sin, cos)
 }
 
+/// `acos x` for `x` in `[-1, 1]` (clamped), to within about 2e-7.
+///
+/// Cephes' `acosf`, as a polynomial and selects rather than the
+/// platform's `acosf`, so that scalar and SIMD code compute the very same
+/// bits: `asin` of `s` is `s + s z P(z)` with `z = s²`, `P` of degree 4,
+/// for `s ≤ 1/2`; `acos a = π/2 − asin a` for `a = |x| ≤ 1/2`, else
+/// `2 asin √((1 − a)/2)`; and `acos x = π − acos |x|` for `x < 0`.
+#[inline(always)]
+pub fn acos<R: Real>(x: R) -> R {
+    let (zero, half, one) = (R::splat(0.0), R::splat(0.5), R::splat(1.0));
+    let a = x.abs().min(one);
+    let big = half.lt(a);
+    let z = R::select(big, half * (one - a), a * a);
+    let s = R::select(big, z.sqrt(), a);
+    let p = z.mul_add(R::splat(4.216_32e-2), R::splat(2.418_131_2e-2));
+    let p = z.mul_add(p, R::splat(4.547_002_5e-2));
+    let p = z.mul_add(p, R::splat(7.495_300_5e-2));
+    let p = z.mul_add(p, R::splat(1.666_675_2e-1));
+    let asin = (s * z).mul_add(p, s);
+    let half_pi = R::splat(std::f32::consts::FRAC_PI_2);
+    let acos_a = R::select(big, asin + asin, half_pi - asin);
+    R::select(x.lt(zero), R::splat(std::f32::consts::PI) - acos_a, acos_a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn acos_matches_libm_closely() {
+        let mut worst = 0.0f64;
+        for i in 0..=200_000 {
+            let x = -1.0 + i as f32 / 100_000.0;
+            worst = worst.max((acos(x) as f64 - (x as f64).acos()).abs());
+        }
+        assert!(worst < 3e-7, "worst error {worst}");
+        assert_eq!(acos(2.0f32), 0.0);
+        assert!((acos(-2.0f32) - std::f32::consts::PI).abs() < 1e-6);
+    }
+
+    #[test]
+    fn acos_simd_equals_scalar_bitwise() {
+        for i in 0..10_000 {
+            let xs: [f32; 8] =
+                std::array::from_fn(|l| (((i * 8 + l) as f32 * 0.618_034) % 2.0) - 1.0);
+            let a8 = acos(f32x8::from(xs)).to_array();
+            for (l, &x) in xs.iter().enumerate() {
+                assert_eq!(acos(x).to_bits(), a8[l].to_bits(), "acos({x})");
+            }
+        }
+    }
 
     #[test]
     fn sin_cos_matches_libm_closely() {

@@ -1,43 +1,50 @@
 //! The emitters of a scene, for next-event estimation: an emitter is
 //! chosen in proportion to its power, then a point on it uniformly by area.
 //!
-//! Every emissive triangle is an emitter. Its power is proportional to
+//! Every emissive triangle is an emitter, except that two emissive
+//! triangles of one material that share an edge and together form a
+//! parallelogram (a quad light made of two triangles, as the Cornell box's)
+//! are one emitter: a point on it is the unit square's point mapped
+//! linearly, one emitter to pick instead of two and no warp to a triangle.
+//! Each emissive sphere is an emitter. Its power is proportional to
 //! `area × mean(emitted radiance)` (a one-sided Lambertian emitter sends
 //! `π · area · L` into its hemisphere). The density of a sampled point, per
 //! unit area, is `P(emitter) / area`; seen from a point `x` at distance `r`,
 //! with the emitter's normal at angle `θ_l` to the direction back to `x`,
 //! it is `P(emitter) / area · r² / cos θ_l` per unit solid angle.
 
-use crate::math::{Real, V3};
+use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use wide::f32x8;
 
 /// The scene's emitters, with what sampling them needs.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
-    /// Primitive index of each emitter (triangles, then spheres).
+    /// Primitive index of each emitter (triangles, then spheres; a
+    /// parallelogram: its first triangle).
     triangle: Vec<u32>,
     /// Running sums of the emitters' powers, normalised to end at 1.
     cdf: Vec<f32>,
     /// Each emitter's geometry and radiance.
     emitters: Vec<Emitter>,
-    /// `P(emitter) / area` of each emitter, by *primitive* index (0 for
-    /// primitives that do not emit), so a hit can look it up.
-    pdf_area_of_triangle: Vec<f32>,
+    /// The emitter of each primitive ([`NOT_EMITTER`] for primitives that
+    /// do not emit), so a hit can look its density up.
+    emitter_of: Vec<u32>,
     /// Whether some emitters are spheres.
     has_spheres: bool,
 }
 
-/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle or a
-/// sphere, its radiance and its sampling density.
+/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, a
+/// parallelogram or a sphere, its radiance and its sampling density.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Emitter<R = f32> {
-    /// Vertex 0 (a sphere: its center).
+    /// Vertex 0 (a parallelogram: the corner its edges start from; a
+    /// sphere: its center).
     pub v0: V3<R>,
-    /// `v1 - v0`.
+    /// `v1 - v0` (a parallelogram: one edge from `v0`).
     pub e1: V3<R>,
-    /// `v2 - v0`.
+    /// `v2 - v0` (a parallelogram: the other edge from `v0`).
     pub e2: V3<R>,
     /// Front-side unit normal (a sphere: unused).
     pub normal: V3<R>,
@@ -45,9 +52,25 @@ pub struct Emitter<R = f32> {
     pub emission: V3<R>,
     /// The density of its points per unit area: `P(emitter) / area`.
     pub pdf_area: R,
-    /// 0 for a triangle; a sphere's radius.
+    /// The probability `P(emitter)` that it is picked.
+    pub probability: R,
+    /// 0 for a triangle or a parallelogram; a sphere's radius.
     pub radius: R,
+    /// 1 for a parallelogram (the points `v0 + a e1 + b e2`, `a` and `b`
+    /// in `[0, 1]`), 0 for a triangle or a sphere.
+    pub parallelogram: R,
+    /// 1 for a rectangle (a parallelogram with square corners): its points
+    /// are sampled by solid angle where it looks large enough
+    /// ([`SphericalRectangle`]); 0 otherwise.
+    pub rectangle: R,
+    /// A rectangle's edges as unit vectors (`e1`, `e2` normalised).
+    pub axes: [V3<R>; 2],
+    /// A rectangle's edge lengths (`|e1|`, `|e2|`).
+    pub lengths: [R; 2],
 }
+
+/// In [`Lights::emitter_of`]: the primitive does not emit.
+const NOT_EMITTER: u32 = u32::MAX;
 
 /// The largest `f32` below 1.
 const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
@@ -58,31 +81,37 @@ const ZERO: V3<f32> = V3 {
     z: 0.0,
 };
 
+/// Number of floats in an [`Emitter`].
+const EMITTER_FLOATS: usize = 29;
+
 impl Emitter {
-    /// The emitter's 16 floats, in field order.
+    /// The emitter's floats, in field order.
     #[inline(always)]
-    fn floats(&self) -> [f32; 17] {
-        let v = |v: V3<f32>| [v.x, v.y, v.z];
-        let [a, b, c, d, e] = [self.v0, self.e1, self.e2, self.normal, self.emission].map(v);
-        [
-            a[0],
-            a[1],
-            a[2],
-            b[0],
-            b[1],
-            b[2],
-            c[0],
-            c[1],
-            c[2],
-            d[0],
-            d[1],
-            d[2],
-            e[0],
-            e[1],
-            e[2],
+    fn floats(&self) -> [f32; EMITTER_FLOATS] {
+        let mut f = [0.0; EMITTER_FLOATS];
+        let v3s = [
+            self.v0,
+            self.e1,
+            self.e2,
+            self.normal,
+            self.emission,
+            self.axes[0],
+            self.axes[1],
+        ];
+        for (k, v) in v3s.iter().enumerate() {
+            f[3 * k..3 * k + 3].copy_from_slice(&[v.x, v.y, v.z]);
+        }
+        f[21..].copy_from_slice(&[
             self.pdf_area,
+            self.probability,
             self.radius,
-        ]
+            self.parallelogram,
+            self.rectangle,
+            self.lengths[0],
+            self.lengths[1],
+            0.0,
+        ]);
+        f
     }
 
     /// No emitter: a point sampled on it never carries light (its normal
@@ -94,32 +123,159 @@ impl Emitter {
         normal: ZERO,
         emission: ZERO,
         pdf_area: 0.0,
+        probability: 0.0,
         radius: 0.0,
+        parallelogram: 0.0,
+        rectangle: 0.0,
+        axes: [ZERO; 2],
+        lengths: [0.0; 2],
     };
 }
 
-impl Emitter<f32x8> {
-    /// Eight emitters, one per lane.
+impl<R: Real> Emitter<R> {
+    /// The emitter whose fields are `f` (in [`Emitter::floats`] order).
     #[inline(always)]
-    pub fn lanes(e: [&Emitter; 8]) -> Self {
-        // Transposed field by field: an emitter is 16 plain floats.
-        let mut cols = [[0.0f32; 8]; 17];
-        for (l, e) in e.iter().enumerate() {
-            for (col, x) in cols.iter_mut().zip(e.floats()) {
-                col[l] = x;
-            }
-        }
-        let c = cols.map(f32x8::from);
-        let v3 = |k: usize| V3::new(c[k], c[k + 1], c[k + 2]);
+    fn from_floats(f: [R; EMITTER_FLOATS]) -> Self {
+        let v3 = |k: usize| V3::new(f[k], f[k + 1], f[k + 2]);
         Self {
             v0: v3(0),
             e1: v3(3),
             e2: v3(6),
             normal: v3(9),
             emission: v3(12),
-            pdf_area: c[15],
-            radius: c[16],
+            axes: [v3(15), v3(18)],
+            pdf_area: f[21],
+            probability: f[22],
+            radius: f[23],
+            parallelogram: f[24],
+            rectangle: f[25],
+            lengths: [f[26], f[27]],
         }
+    }
+}
+
+impl Emitter<f32x8> {
+    /// Eight emitters, one per lane.
+    #[inline(always)]
+    pub fn lanes(e: [&Emitter; 8]) -> Self {
+        // Transposed field by field: an emitter is plain floats.
+        let mut cols = [[0.0f32; 8]; EMITTER_FLOATS];
+        for (l, e) in e.iter().enumerate() {
+            for (col, x) in cols.iter_mut().zip(e.floats()) {
+                col[l] = x;
+            }
+        }
+        Self::from_floats(cols.map(f32x8::from))
+    }
+
+    /// One emitter in all eight lanes.
+    #[inline(always)]
+    pub fn splat(e: &Emitter) -> Self {
+        Self::from_floats(e.floats().map(f32x8::splat))
+    }
+}
+
+/// Rectangles that look smaller than this (in steradians) from a point
+/// are sampled there by area, not by solid angle: a small solid angle is
+/// the difference of nearly equal angles, too inexact to sample by, and
+/// area sampling is then nearly as good.
+pub const MIN_SOLID_ANGLE: f32 = 0.02;
+
+/// A rectangle emitter as seen from a point `o`: the spherical rectangle
+/// of Ureña, Fajardo and King ("An Area-Preserving Parametrization for
+/// Spherical Rectangles", EGSR 2013), which maps the unit square onto the
+/// rectangle's points uniformly by the solid angle they subtend at `o`.
+///
+/// In the rectangle's frame (`x`, `y` its edges from corner `v0`, `z`
+/// their cross product turned away from `o`), `o` sees the corner at
+/// `(x0, y0, z0)`, `z0 ≤ 0`, and the rectangle spans `[x0, x1] × [y0, y1]`
+/// at height `z0`. Written once over [`Real`], so one lane and eight
+/// compute the same bits.
+#[derive(Clone, Copy, Debug)]
+pub struct SphericalRectangle<R> {
+    x0: R,
+    x1: R,
+    y0: R,
+    y1: R,
+    z0: R,
+    b0: R,
+    b1: R,
+    k: R,
+    /// The solid angle the rectangle subtends at `o`.
+    pub solid_angle: R,
+}
+
+impl<R: Real> SphericalRectangle<R> {
+    /// The rectangle `e` (its `axes` and `lengths`) seen from `o`.
+    #[inline(always)]
+    pub fn new(e: &Emitter<R>, o: V3<R>) -> Self {
+        let [ax, ay] = e.axes;
+        let d = e.v0 - o;
+        let z0 = -d.dot(ax.cross(ay)).abs();
+        let (x0, y0) = (d.dot(ax), d.dot(ay));
+        let (x1, y1) = (x0 + e.lengths[0], y0 + e.lengths[1]);
+        // The unit normals of the four planes through `o` and an edge:
+        // n0 = (0, z0, -y0)/l0, n1 = (-z0, 0, x1)/l1, n2 = (0, -z0, y1)/l2,
+        // n3 = (z0, 0, -x0)/l3; the spherical rectangle's inner angles are
+        // acos(-ni · ni+1).
+        let z2 = z0 * z0;
+        let (l0, l1) = (y0.mul_add(y0, z2).sqrt(), x1.mul_add(x1, z2).sqrt());
+        let (l2, l3) = (y1.mul_add(y1, z2).sqrt(), x0.mul_add(x0, z2).sqrt());
+        let g0 = acos((y0 * x1) / (l0 * l1));
+        let g1 = acos(-(x1 * y1) / (l1 * l2));
+        let g2 = acos((x0 * y1) / (l2 * l3));
+        let g3 = acos(-(x0 * y0) / (l3 * l0));
+        let k = R::splat(std::f32::consts::TAU) - g2 - g3;
+        Self {
+            x0,
+            x1,
+            y0,
+            y1,
+            z0,
+            b0: -y0 / l0,
+            b1: y1 / l2,
+            k,
+            solid_angle: g0 + g1 - k,
+        }
+    }
+
+    /// The point of the rectangle `e` (seen from `o`, as in [`new`]) for
+    /// the numbers `u`, uniform by solid angle.
+    ///
+    /// [`new`]: SphericalRectangle::new
+    #[inline(always)]
+    pub fn sample(&self, e: &Emitter<R>, [u, v]: [R; 2]) -> V3<R> {
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
+        // The azimuth: a cut through `o` at angle `au` holds the fraction
+        // `u` of the solid angle; it crosses the rectangle at `x = xu`.
+        let au = u.mul_add(self.solid_angle, self.k);
+        let (sin, cos) = sin_cos_2pi(au * R::splat(1.0 / std::f32::consts::TAU));
+        let fu = cos.mul_add(self.b0, -self.b1) / sin;
+        let cu = one / fu.mul_add(fu, self.b0 * self.b0).sqrt();
+        let cu = R::select(fu.lt(zero), -cu, cu).min(one).max(-one);
+        let xu = -(cu * self.z0) / (-cu).mul_add(cu, one).max(zero).sqrt();
+        let xu = xu.max(self.x0).min(self.x1);
+        // The elevation, linear in `v` along the cut.
+        let dd = xu.mul_add(xu, self.z0 * self.z0).sqrt();
+        let d2 = dd * dd;
+        let h0 = self.y0 / self.y0.mul_add(self.y0, d2).sqrt();
+        let h1 = self.y1 / self.y1.mul_add(self.y1, d2).sqrt();
+        let hv = v.mul_add(h1 - h0, h0);
+        let hv2 = hv * hv;
+        let yv = R::select(
+            hv2.lt(R::splat(1.0 - 1e-6)),
+            (hv * dd) / (one - hv2).sqrt(),
+            self.y1,
+        );
+        let yv = yv.max(self.y0).min(self.y1);
+        let [ax, ay] = e.axes;
+        ay.mul_add(yv - self.y0, ax.mul_add(xu - self.x0, e.v0))
+    }
+
+    /// Whether `e` is a rectangle sampled by solid angle from this point.
+    #[inline(always)]
+    pub fn used(&self, e: &Emitter<R>) -> R::Mask {
+        R::splat(0.0).lt(e.rectangle) & R::splat(MIN_SOLID_ANGLE).lt(self.solid_angle)
     }
 }
 
@@ -133,24 +289,46 @@ pub struct LightPoint<R> {
     pub normal: V3<R>,
     /// The radiance it emits towards its front.
     pub emission: V3<R>,
-    /// The point's density per unit area.
+    /// The point's density per unit area, when it was sampled by area.
     pub pdf_area: R,
+    /// The point's density per unit solid angle at the shading point, when
+    /// it was sampled by solid angle; 0 when it was sampled by area.
+    pub pdf_solid_angle: R,
 }
 
 impl<R: Real> LightPoint<R> {
-    /// The point `u` (two numbers) of the emitter `e`, uniform by area
-    /// ([`square_to_triangle`]).
+    /// The point `u` (two numbers) of the emitter `e`, for a shading point
+    /// `o`: on a rectangle that looks large enough from `o`, uniform by
+    /// the solid angle it subtends at `o` ([`SphericalRectangle`]); else
+    /// uniform by area, on a triangle through [`square_to_triangle`], on a
+    /// parallelogram the square mapped linearly.
     #[inline(always)]
-    pub fn on(e: &Emitter<R>, u: [R; 2]) -> Self {
-        Self::on_triangle(e, u)
+    pub fn on(e: &Emitter<R>, o: V3<R>, u: [R; 2]) -> Self {
+        let [t1, t2] = square_to_triangle(u);
+        let parallelogram = R::splat(0.0).lt(e.parallelogram);
+        let (b1, b2) = (
+            R::select(parallelogram, u[0], t1),
+            R::select(parallelogram, u[1], t2),
+        );
+        let by_area = e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0));
+        let rect = SphericalRectangle::new(e, o);
+        let solid = rect.used(e);
+        Self {
+            point: V3::select(solid, rect.sample(e, u), by_area),
+            normal: e.normal,
+            emission: e.emission,
+            pdf_area: e.pdf_area,
+            pdf_solid_angle: R::select(solid, e.probability / rect.solid_angle, R::splat(0.0)),
+        }
     }
 
-    /// The point [`LightPoint::on`] gives on a triangle emitter, or on a
-    /// sphere emitter (a lane whose `radius` is positive) a point uniform
-    /// on its surface by area: `z = 1 - 2 u0`, azimuth `2π u1`.
+    /// The point [`LightPoint::on`] gives on a triangle or parallelogram
+    /// emitter, or on a sphere emitter (a lane whose `radius` is positive)
+    /// a point uniform on its surface by area: `z = 1 - 2 u0`, azimuth
+    /// `2π u1`.
     #[inline(always)]
-    pub fn on_any(e: &Emitter<R>, u: [R; 2]) -> Self {
-        let t = Self::on_triangle(e, u);
+    pub fn on_any(e: &Emitter<R>, o: V3<R>, u: [R; 2]) -> Self {
+        let t = Self::on(e, o, u);
         let one = R::splat(1.0);
         let z = R::splat(-2.0).mul_add(u[0], one);
         let r = (-z).mul_add(z, one).max(R::splat(0.0)).sqrt();
@@ -163,50 +341,69 @@ impl<R: Real> LightPoint<R> {
             ..t
         }
     }
-
-    #[inline(always)]
-    fn on_triangle(e: &Emitter<R>, u: [R; 2]) -> Self {
-        let [b1, b2] = square_to_triangle(u);
-        Self {
-            point: e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)),
-            normal: e.normal,
-            emission: e.emission,
-            pdf_area: e.pdf_area,
-        }
-    }
 }
 
 impl Lights {
     /// The emitters of `scene`: its triangles whose material emits and
-    /// whose area is not zero.
+    /// whose area is not zero (pairs that form a parallelogram as one,
+    /// [`parallelogram_partners`]), then its emissive spheres.
     pub fn new(scene: &Scene) -> Self {
         let mut lights = Lights {
-            pdf_area_of_triangle: vec![0.0; scene.triangles.len() + scene.spheres.len()],
+            emitter_of: vec![NOT_EMITTER; scene.triangles.len() + scene.spheres.len()],
             has_spheres: false,
             ..Lights::default()
         };
-        let mut powers = Vec::new();
-        let mut areas = Vec::new();
-        for (i, t) in scene.triangles.iter().enumerate() {
+        // Per emitter: its primitives, power and area.
+        let mut shapes: Vec<([Option<u32>; 2], f64, f64)> = Vec::new();
+        let emissive: Vec<usize> = (0..scene.triangles.len())
+            .filter(|&i| {
+                let t = &scene.triangles[i];
+                let emission = scene.materials[t.material as usize].emission;
+                let area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+                let power = area * emission.element_sum() / 3.0;
+                power > 0.0 && power.is_finite()
+            })
+            .collect();
+        let partner = parallelogram_partners(&scene.triangles, &emissive);
+        for (k, &i) in emissive.iter().enumerate() {
+            let t = &scene.triangles[i];
             let emission = scene.materials[t.material as usize].emission;
-            let (e1, e2) = (t.v[1] - t.v[0], t.v[2] - t.v[0]);
-            let area = 0.5 * e1.cross(e2).length();
-            let power = area * emission.element_sum() / 3.0;
-            if !(power > 0.0 && power.is_finite()) {
-                continue;
-            }
-            lights.triangle.push(i as u32);
-            lights.emitters.push(Emitter {
+            let mut emitter = Emitter {
                 v0: t.v[0].into(),
-                e1: e1.into(),
-                e2: e2.into(),
+                e1: (t.v[1] - t.v[0]).into(),
+                e2: (t.v[2] - t.v[0]).into(),
                 normal: t.normal.into(),
                 emission: emission.into(),
-                pdf_area: 0.0,
-                radius: 0.0,
-            });
-            powers.push(power as f64);
-            areas.push(area as f64);
+                ..Emitter::NONE
+            };
+            let mut area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+            let mut second = None;
+            match partner[k] {
+                // The later triangle of a pair: already in its emitter.
+                Some((j, _)) if j < i => continue,
+                Some((j, corner)) => {
+                    // The corner opposite the shared edge, and the edges
+                    // from it to the shared edge's ends.
+                    let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+                    emitter.v0 = x.into();
+                    emitter.e1 = (p - x).into();
+                    emitter.e2 = (q - x).into();
+                    emitter.parallelogram = 1.0;
+                    area = (p - x).cross(q - x).length();
+                    let (l1, l2) = ((p - x).length(), (q - x).length());
+                    if (p - x).dot(q - x).abs() <= 1e-6 * l1 * l2 {
+                        emitter.rectangle = 1.0;
+                        emitter.axes = [((p - x) / l1).into(), ((q - x) / l2).into()];
+                        emitter.lengths = [l1, l2];
+                    }
+                    second = Some(j as u32);
+                }
+                None => {}
+            }
+            let power = area * emission.element_sum() / 3.0;
+            lights.triangle.push(i as u32);
+            lights.emitters.push(emitter);
+            shapes.push(([Some(i as u32), second], power as f64, area as f64));
         }
         let first_sphere = scene.triangles.len();
         for (k, sphere) in scene.spheres.iter().enumerate() {
@@ -216,33 +413,41 @@ impl Lights {
             if !(power > 0.0 && power.is_finite()) {
                 continue;
             }
+            let prim = (first_sphere + k) as u32;
             lights.has_spheres = true;
-            lights.triangle.push((first_sphere + k) as u32);
+            lights.triangle.push(prim);
             lights.emitters.push(Emitter {
                 v0: sphere.center.into(),
-                e1: ZERO,
-                e2: ZERO,
-                normal: ZERO,
                 emission: emission.into(),
-                pdf_area: 0.0,
                 radius: sphere.radius,
+                ..Emitter::NONE
             });
-            powers.push(power);
-            areas.push(area);
+            shapes.push(([Some(prim), None], power, area));
         }
-        let total: f64 = powers.iter().sum();
+        let total: f64 = shapes.iter().map(|s| s.1).sum();
         let mut sum = 0.0;
-        for (k, p) in powers.iter().enumerate() {
-            sum += p;
+        for (k, (prims, power, area)) in shapes.iter().enumerate() {
+            sum += power;
             lights.cdf.push((sum / total) as f32);
-            let pdf_area = ((p / total) / areas[k]) as f32;
-            lights.emitters[k].pdf_area = pdf_area;
-            lights.pdf_area_of_triangle[lights.triangle[k] as usize] = pdf_area;
+            lights.emitters[k].pdf_area = ((power / total) / area) as f32;
+            lights.emitters[k].probability = (power / total) as f32;
+            for prim in prims.iter().flatten() {
+                lights.emitter_of[*prim as usize] = k as u32;
+            }
         }
         if let Some(last) = lights.cdf.last_mut() {
             *last = 1.0;
         }
         lights
+    }
+
+    /// The emitter of a one-emitter scene, if it has exactly one.
+    #[inline]
+    pub fn single(&self) -> Option<&Emitter> {
+        match self.emitters.as_slice() {
+            [e] => Some(e),
+            _ => None,
+        }
     }
 
     /// Whether the scene has no emitter.
@@ -274,36 +479,75 @@ impl Lights {
         (&self.emitters[k], u.clamp(0.0, ONE_MINUS_EPSILON))
     }
 
-    /// A point on an emitter: `u[0]` chooses the emitter by power (and is
-    /// reused, [`pick`](Self::pick)), `u` places the point on it, uniformly
-    /// by area. `None` when the scene has no emitter.
+    /// A point on an emitter for the shading point `o`: `u[0]` chooses
+    /// the emitter by power (and is reused, [`pick`](Self::pick)), `u`
+    /// places the point on it ([`LightPoint::on`]). `None` when the scene
+    /// has no emitter.
     #[inline]
-    pub fn sample(&self, u: [f32; 2]) -> Option<LightPoint<f32>> {
+    pub fn sample(&self, o: V3<f32>, u: [f32; 2]) -> Option<LightPoint<f32>> {
         if self.is_empty() {
             return None;
         }
         let (emitter, u0) = self.pick(u[0]);
-        Some(self.point_on(emitter, [u0, u[1]]))
+        Some(self.point_on(emitter, o, [u0, u[1]]))
     }
 
-    /// The point on `emitter` (one lane or eight) for the numbers `u`:
-    /// [`LightPoint::on`], or [`LightPoint::on_any`] where the scene has
-    /// emissive spheres.
+    /// [`pick`](Self::pick) for the first `lanes` of eight numbers: the
+    /// emitters, one per lane (lanes past `lanes` get [`Emitter::NONE`],
+    /// or the scene's one emitter), and the stretched numbers.
     #[inline(always)]
-    pub fn point_on<R: Real>(&self, emitter: &Emitter<R>, u: [R; 2]) -> LightPoint<R> {
+    pub fn pick_8(&self, u0: f32x8, lanes: usize) -> (Emitter<f32x8>, f32x8) {
+        if let Some(e) = self.single() {
+            return (Emitter::splat(e), u0);
+        }
+        let mut u = u0.to_array();
+        let mut emitters = [&Emitter::NONE; 8];
+        for l in 0..lanes {
+            (emitters[l], u[l]) = self.pick(u[l]);
+        }
+        (Emitter::lanes(emitters), f32x8::from(u))
+    }
+
+    /// The point on `emitter` (one lane or eight) for the shading point
+    /// `o` and the numbers `u`: [`LightPoint::on`], or
+    /// [`LightPoint::on_any`] where the scene has emissive spheres.
+    #[inline(always)]
+    pub fn point_on<R: Real>(&self, emitter: &Emitter<R>, o: V3<R>, u: [R; 2]) -> LightPoint<R> {
         if self.has_spheres {
-            LightPoint::on_any(emitter, u)
+            LightPoint::on_any(emitter, o, u)
         } else {
-            LightPoint::on(emitter, u)
+            LightPoint::on(emitter, o, u)
         }
     }
 
     /// The density per unit area with which [`Lights::sample`] picks a
     /// point on primitive `triangle` (triangles, then spheres; 0 for one
-    /// that does not emit).
+    /// that does not emit) when it samples by area.
     #[inline]
     pub fn pdf_area(&self, triangle: u32) -> f32 {
-        self.pdf_area_of_triangle[triangle as usize]
+        match self.emitter_of[triangle as usize] {
+            NOT_EMITTER => 0.0,
+            k => self.emitters[k as usize].pdf_area,
+        }
+    }
+
+    /// The density per unit solid angle at `o` with which
+    /// [`Lights::sample`] for the shading point `o` finds the point at
+    /// distance `t` on primitive `triangle`, whose front faces `o` at
+    /// cosine `cos_light` (0 for a primitive that does not emit): the same
+    /// density the light sample computes, by solid angle or by area.
+    #[inline]
+    pub fn pdf_solid_angle(&self, triangle: u32, o: V3<f32>, t: f32, cos_light: f32) -> f32 {
+        let e = match self.emitter_of[triangle as usize] {
+            NOT_EMITTER => return 0.0,
+            k => &self.emitters[k as usize],
+        };
+        let rect = SphericalRectangle::new(e, o);
+        if rect.used(e) {
+            e.probability / rect.solid_angle
+        } else {
+            e.pdf_area * (t * t) / cos_light
+        }
     }
 }
 
@@ -330,10 +574,68 @@ pub fn power_heuristic<R: Real>(a: R, b: R) -> R {
     R::select(b2.eq(R::splat(0.0)), R::splat(1.0), a2 / (a2 + b2))
 }
 
+/// For each of the triangles `emissive` (indices into `triangles`), the
+/// emissive triangle it forms a parallelogram with, if any, and which of
+/// its own corners lies opposite their shared edge. Two triangles pair
+/// when they share an edge (the same two vertices, bit for bit), have the
+/// same material and the same front side, and their corners opposite that
+/// edge mirror each other through the edge's midpoint (`x + y = p + q`, to
+/// within rounding): then their union is the parallelogram spanned from
+/// either corner. A triangle pairs at most once, with the first partner in
+/// index order; the result is a function of the scene only.
+fn parallelogram_partners(
+    triangles: &[crate::scene::Triangle],
+    emissive: &[usize],
+) -> Vec<Option<(usize, usize)>> {
+    use std::collections::HashMap;
+    type Key = ([u32; 3], [u32; 3]);
+    let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
+    let edge_key = |a: glam::Vec3, b: glam::Vec3| -> Key {
+        let (a, b) = (bits(a), bits(b));
+        if a <= b { (a, b) } else { (b, a) }
+    };
+    let mut partner = vec![None; emissive.len()];
+    // Unpaired triangles by edge: (position in `emissive`, opposite corner).
+    let mut open: HashMap<Key, (usize, usize)> = HashMap::new();
+    for (k, &i) in emissive.iter().enumerate() {
+        let t = &triangles[i];
+        for corner in 0..3 {
+            let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+            let key = edge_key(p, q);
+            let Some(&(m, other_corner)) = open.get(&key) else {
+                continue;
+            };
+            if partner[m].is_some() {
+                continue;
+            }
+            let s = &triangles[emissive[m]];
+            let y = s.v[other_corner];
+            let scale = [x, y, p, q]
+                .iter()
+                .map(|v| v.abs().max_element())
+                .fold(0.0, f32::max);
+            let mirrored = ((x + y) - (p + q)).abs().max_element() <= 4.0 * f32::EPSILON * scale;
+            if s.material == t.material && s.normal.dot(t.normal) > 0.999_99 && mirrored {
+                partner[m] = Some((i, other_corner));
+                partner[k] = Some((emissive[m], corner));
+                break;
+            }
+        }
+        if partner[k].is_none() {
+            for corner in 0..3 {
+                let key = edge_key(t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+                open.entry(key).or_insert((k, corner));
+            }
+        }
+    }
+    partner
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::integrator::sampler::PathRng;
+    use glam::Vec3;
 
     #[test]
     fn square_to_triangle_is_uniform_on_the_triangle() {
@@ -363,18 +665,36 @@ mod tests {
         }
     }
 
+    /// The Cornell box with its light's second triangle given its own
+    /// material, emitting `factor` times as much: two emitters.
+    fn cornell_two_lights(factor: f32) -> Scene {
+        let mut scene = Scene::cornell();
+        let lights: Vec<usize> = (0..scene.triangles.len())
+            .filter(|&i| {
+                scene.materials[scene.triangles[i].material as usize].emission != Vec3::ZERO
+            })
+            .collect();
+        let mut brighter = scene.materials[scene.triangles[lights[1]].material as usize].clone();
+        brighter.emission *= factor;
+        scene.materials.push(brighter);
+        scene.triangles[lights[1]].material = scene.materials.len() as u32 - 1;
+        scene
+    }
+
     #[test]
     fn emitters_are_picked_by_power() {
-        // The Cornell box's light is two triangles of equal area: each half.
-        let scene = Scene::cornell();
+        // Two triangles of equal area, the second three times as bright:
+        // picked a quarter and three quarters of the time.
+        let scene = cornell_two_lights(3.0);
         let lights = Lights::new(&scene);
         assert_eq!(lights.len(), 2);
-        let area = |e: &Emitter| 0.5 * glam::Vec3::from(e.e1).cross(e.e2.into()).length();
-        let total_area: f32 = lights.emitters.iter().map(area).sum();
-        for (k, e) in lights.emitters.iter().enumerate() {
+        let area = |e: &Emitter| 0.5 * Vec3::from(e.e1).cross(e.e2.into()).length();
+        for (k, (e, want)) in lights.emitters.iter().zip([0.25, 0.75]).enumerate() {
+            assert!((e.probability - want).abs() < 1e-6, "{}", e.probability);
             let p = lights.pdf_area(lights.triangle[k]) * area(e);
-            assert!((p - area(e) / total_area).abs() < 1e-6, "{p}");
+            assert!((p - want).abs() < 1e-6, "{p}");
             assert_eq!(e.pdf_area, lights.pdf_area(lights.triangle[k]));
+            assert_eq!(e.parallelogram, 0.0);
         }
         // Picks follow the running sums of the powers, and stretch the
         // number back over the emitter's share.
@@ -383,45 +703,249 @@ mod tests {
             (std::ptr::eq(e, &lights.emitters[0]), u)
         };
         assert_eq!(pick(0.0), (true, 0.0));
-        assert_eq!(pick(0.25), (true, 0.5));
-        assert_eq!(pick(0.75), (false, 0.5));
+        assert_eq!(pick(0.125), (true, 0.5));
+        assert_eq!(pick(0.625), (false, 0.5));
         let (first, u) = pick(0.999_999_9);
         assert!(!first && u < 1.0 && u > 0.999_99);
         // Non-emitters have density 0; samples lie on the light's plane.
         assert_eq!(lights.pdf_area(0), 0.0);
         let y = scene.triangles[lights.triangle[0] as usize].v[0].y;
         let mut rng = PathRng::new(4, 4, 4);
+        let o = V3::new(0.1, 0.5, 0.2);
         for _ in 0..1000 {
-            let s = lights.sample([rng.next_f32(), rng.next_f32()]).unwrap();
+            let s = lights.sample(o, [rng.next_f32(), rng.next_f32()]).unwrap();
             assert!((s.point.y - y).abs() < 1e-6);
-            assert_eq!([s.emission.x, s.emission.y, s.emission.z], [10.0; 3]);
+            assert!([10.0, 30.0].contains(&s.emission.x));
+            assert_eq!(s.pdf_solid_angle, 0.0, "triangles are sampled by area");
         }
         // No emitter, no sample.
         let mut dark = scene.clone();
         dark.materials
             .iter_mut()
-            .for_each(|m| m.emission = glam::Vec3::ZERO);
-        assert!(Lights::new(&dark).sample([0.5, 0.5]).is_none());
+            .for_each(|m| m.emission = Vec3::ZERO);
+        assert!(Lights::new(&dark).sample(o, [0.5, 0.5]).is_none());
+    }
+
+    #[test]
+    fn two_triangles_that_make_a_rectangle_are_one_emitter() {
+        let scene = Scene::cornell();
+        let lights = Lights::new(&scene);
+        assert_eq!(lights.len(), 1);
+        let e = lights.single().unwrap();
+        assert_eq!(
+            (e.parallelogram, e.rectangle, e.probability),
+            (1.0, 1.0, 1.0)
+        );
+        // Both triangles of the light look up the square's density.
+        let light: Vec<u32> = (0..scene.triangles.len() as u32)
+            .filter(|&i| lights.pdf_area(i) > 0.0)
+            .collect();
+        assert_eq!(light.len(), 2);
+        let area = Vec3::from(e.e1).cross(e.e2.into()).length();
+        for &i in &light {
+            assert!((lights.pdf_area(i) * area - 1.0).abs() < 1e-6);
+        }
+        // Points sampled by area (from a point that sees the square at a
+        // grazing angle) cover the square, corner to corner, uniformly:
+        // each quarter gets a quarter.
+        let o = V3::new(5.0, -0.99, 0.0);
+        let mut rng = PathRng::new(5, 5, 5);
+        let mut quarters = [0u32; 4];
+        let n = 40_000;
+        for _ in 0..n {
+            let s = lights.sample(o, [rng.next_f32(), rng.next_f32()]).unwrap();
+            assert_eq!(s.pdf_solid_angle, 0.0, "seen too small: by area");
+            let q = Vec3::from(s.point) - Vec3::from(e.v0);
+            let (e1, e2) = (Vec3::from(e.e1), Vec3::from(e.e2));
+            let (a, b) = (
+                q.dot(e1) / e1.length_squared(),
+                q.dot(e2) / e2.length_squared(),
+            );
+            assert!((-1e-6..=1.0 + 1e-6).contains(&a) && (-1e-6..=1.0 + 1e-6).contains(&b));
+            quarters[(a >= 0.5) as usize * 2 + (b >= 0.5) as usize] += 1;
+        }
+        let sigma = (n as f64 * 0.25 * 0.75).sqrt();
+        for c in quarters {
+            assert!(
+                (c as f64 - n as f64 / 4.0).abs() < 4.0 * sigma,
+                "{quarters:?}"
+            );
+        }
+        // A kite (the second triangle's far corner moved) is two emitters.
+        let mut kite = scene.clone();
+        kite.triangles[light[1] as usize]
+            .v
+            .iter_mut()
+            .for_each(|v| {
+                if v.x > 0.4 && v.z > 0.4 {
+                    v.x += 0.1;
+                }
+            });
+        assert_eq!(Lights::new(&kite).len(), 2);
+        // So are two triangles of different materials.
+        assert_eq!(Lights::new(&cornell_two_lights(1.0)).len(), 2);
+    }
+
+    /// The solid angle of the Cornell box's light seen from `o`, by
+    /// integrating `cos θ_l / r²` over it on a fine grid (midpoint rule).
+    fn solid_angle_by_quadrature(e: &Emitter, o: Vec3) -> f64 {
+        let m = 400;
+        let (v0, e1, e2, n) = (
+            Vec3::from(e.v0).as_dvec3(),
+            Vec3::from(e.e1).as_dvec3(),
+            Vec3::from(e.e2).as_dvec3(),
+            Vec3::from(e.normal).as_dvec3(),
+        );
+        let da = e1.cross(e2).length() / (m * m) as f64;
+        let mut sum = 0.0;
+        for i in 0..m {
+            for j in 0..m {
+                let p =
+                    v0 + e1 * ((i as f64 + 0.5) / m as f64) + e2 * ((j as f64 + 0.5) / m as f64);
+                let d = p - o.as_dvec3();
+                sum += n.dot(-d).abs() / d.length().powi(3) * da;
+            }
+        }
+        sum
+    }
+
+    #[test]
+    fn the_spherical_rectangle_has_the_rectangles_solid_angle() {
+        let lights = Lights::new(&Scene::cornell());
+        let e = lights.single().unwrap();
+        for o in [
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-0.9, 0.2, 0.7),
+            Vec3::new(0.95, -0.8, -0.95),
+            Vec3::new(0.3, -0.9, 0.1),
+        ] {
+            let s = SphericalRectangle::new(e, V3::from(o)).solid_angle as f64;
+            let q = solid_angle_by_quadrature(e, o);
+            assert!((s - q).abs() < 1e-4 * q + 1e-6, "from {o}: {s} vs {q}");
+        }
+    }
+
+    /// χ² of points sampled on the Cornell box's light from `o` against
+    /// uniform density by solid angle, over a 6×6 grid of cells on the
+    /// light (each cell's expected share is its solid angle over the
+    /// light's), and its degrees of freedom.
+    fn chi2_by_solid_angle(o: Vec3, point: impl Fn([f32; 2]) -> V3<f32>) -> (f64, f64) {
+        let lights = Lights::new(&Scene::cornell());
+        let e = *lights.single().unwrap();
+        let cells = 6;
+        let total = SphericalRectangle::new(&e, V3::from(o)).solid_angle as f64;
+        let mut expected = vec![0.0; cells * cells];
+        for i in 0..cells {
+            for j in 0..cells {
+                let (e1, e2) = (
+                    Vec3::from(e.e1) / cells as f32,
+                    Vec3::from(e.e2) / cells as f32,
+                );
+                let cell = Emitter {
+                    v0: (Vec3::from(e.v0) + e1 * i as f32 + e2 * j as f32).into(),
+                    e1: e1.into(),
+                    e2: e2.into(),
+                    ..e
+                };
+                expected[i * cells + j] = solid_angle_by_quadrature(&cell, o) / total;
+            }
+        }
+        let n = 200_000;
+        let mut counts = vec![0u32; cells * cells];
+        let mut rng = PathRng::new(9, 9, 9);
+        let (e1, e2) = (Vec3::from(e.e1), Vec3::from(e.e2));
+        for _ in 0..n {
+            let p = Vec3::from(point([rng.next_f32(), rng.next_f32()])) - Vec3::from(e.v0);
+            let cell = |f: f32| (f * cells as f32).clamp(0.0, cells as f32 - 1.0) as usize;
+            let (a, b) = (
+                cell(p.dot(e1) / e1.length_squared()),
+                cell(p.dot(e2) / e2.length_squared()),
+            );
+            counts[a * cells + b] += 1;
+        }
+        let chi2 = counts
+            .iter()
+            .zip(&expected)
+            .map(|(&c, &p)| (c as f64 - n as f64 * p).powi(2) / (n as f64 * p))
+            .sum();
+        (chi2, (cells * cells - 1) as f64)
+    }
+
+    #[test]
+    fn spherical_rectangle_points_are_uniform_by_solid_angle() {
+        // χ² with 35 degrees of freedom: mean 35, sd 8.4; 80 is far out in
+        // the tail (p ≈ 2e-5).
+        let lights = Lights::new(&Scene::cornell());
+        let e = *lights.single().unwrap();
+        for o in [Vec3::new(0.0, 0.9, 0.0), Vec3::new(-0.9, -0.7, 0.8)] {
+            let rect = SphericalRectangle::new(&e, V3::from(o));
+            let (chi2, dof) = chi2_by_solid_angle(o, |u| rect.sample(&e, u));
+            assert!(chi2 < 80.0, "from {o}: chi2 {chi2} ({dof} dof)");
+            // The same test rejects points uniform by area (a sampler
+            // whose pdf would be wrong by the solid angle's variation).
+            let (chi2, _) =
+                chi2_by_solid_angle(o, |u| e.e1.mul_add(u[0], e.e2.mul_add(u[1], e.v0)));
+            assert!(chi2 > 80.0, "from {o}: area sampling passed, chi2 {chi2}");
+        }
+    }
+
+    #[test]
+    fn the_density_of_a_hit_is_the_density_of_the_light_sample() {
+        // What the MIS weight of a scattered ray that hits the light looks
+        // up equals what the light sample that found the same point had.
+        let lights = Lights::new(&Scene::cornell());
+        let prim = (0..64).find(|&i| lights.pdf_area(i) > 0.0).unwrap();
+        let mut rng = PathRng::new(6, 6, 6);
+        for o in [
+            V3::new(0.0, 0.9, 0.0),
+            V3::new(-0.9, -0.98, 0.8),
+            V3::new(5.0, -0.99, 0.0),
+        ] {
+            for _ in 0..100 {
+                let s = lights.sample(o, [rng.next_f32(), rng.next_f32()]).unwrap();
+                let to = Vec3::from(s.point) - Vec3::from(o);
+                let cos = -Vec3::from(s.normal).dot(to.normalize());
+                let by_sample = if s.pdf_solid_angle > 0.0 {
+                    s.pdf_solid_angle
+                } else {
+                    s.pdf_area * to.length_squared() / cos
+                };
+                let by_hit = lights.pdf_solid_angle(prim, o, to.length(), cos);
+                assert!(
+                    (by_sample - by_hit).abs() <= 1e-5 * by_hit,
+                    "{by_sample} {by_hit}"
+                );
+            }
+        }
     }
 
     #[test]
     fn eight_lanes_sample_the_points_one_lane_does() {
-        let lights = Lights::new(&Scene::cornell());
-        let mut rng = PathRng::new(8, 8, 8);
-        for _ in 0..1000 {
-            let u: [[f32; 2]; 8] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
-            let picked = u.map(|u| lights.pick(u[0]));
-            let e = Emitter::lanes(picked.map(|p| p.0));
-            let u0 = f32x8::from(picked.map(|p| p.1));
-            let p8 = LightPoint::on(&e, [u0, f32x8::from(u.map(|u| u[1]))]);
-            for (l, &u) in u.iter().enumerate() {
-                let p = lights.sample(u).unwrap();
-                let lane = |v: f32x8| v.to_array()[l].to_bits();
-                assert_eq!(
-                    [p.point.x, p.point.y, p.point.z].map(f32::to_bits),
-                    [lane(p8.point.x), lane(p8.point.y), lane(p8.point.z)]
+        for scene in [Scene::cornell(), cornell_two_lights(3.0)] {
+            let lights = Lights::new(&scene);
+            let mut rng = PathRng::new(8, 8, 8);
+            for _ in 0..1000 {
+                let u: [[f32; 2]; 8] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
+                let o: [Vec3; 8] = std::array::from_fn(|_| {
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0
+                });
+                let o8 = V3::new(
+                    f32x8::from(o.map(|o| o.x)),
+                    f32x8::from(o.map(|o| o.y)),
+                    f32x8::from(o.map(|o| o.z)),
                 );
-                assert_eq!(p.pdf_area.to_bits(), lane(p8.pdf_area));
+                let (e, u0) = lights.pick_8(f32x8::from(u.map(|u| u[0])), 8);
+                let p8 = LightPoint::on(&e, o8, [u0, f32x8::from(u.map(|u| u[1]))]);
+                for (l, &u) in u.iter().enumerate() {
+                    let p = lights.sample(V3::from(o[l]), u).unwrap();
+                    let lane = |v: f32x8| v.to_array()[l].to_bits();
+                    assert_eq!(
+                        [p.point.x, p.point.y, p.point.z].map(f32::to_bits),
+                        [lane(p8.point.x), lane(p8.point.y), lane(p8.point.z)]
+                    );
+                    assert_eq!(p.pdf_area.to_bits(), lane(p8.pdf_area));
+                    assert_eq!(p.pdf_solid_angle.to_bits(), lane(p8.pdf_solid_angle));
+                }
             }
         }
     }

@@ -203,7 +203,11 @@ pub fn connect_shaded<R: Real>(
     let t_max = dist - epsilon;
     let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir);
     let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos) & zero.lt(ng.dot(dir));
-    let pdf_light = light.pdf_area * dist2 / cos_light;
+    let pdf_light = R::select(
+        R::splat(0.0).lt(light.pdf_solid_angle),
+        light.pdf_solid_angle,
+        light.pdf_area * dist2 / cos_light,
+    );
     let w = power_heuristic(pdf_light, pdf_bsdf);
     let scale = w / pdf_light;
     let radiance = V3::new(
@@ -220,16 +224,16 @@ pub fn connect_shaded<R: Real>(
     (valid, ray)
 }
 
-/// The MIS weight of emission found by a scattered ray: the ray was drawn
-/// with density `bsdf_pdf` (0 for a camera ray or a specular bounce: then
-/// light sampling could not have found it, and the weight is 1), and hit
-/// triangle `triangle` at distance `t`, whose front faces the ray at
+/// The MIS weight of emission found by a scattered ray: the ray left `o`,
+/// drawn with density `bsdf_pdf` (0 for a camera ray or a specular bounce:
+/// then light sampling could not have found it, and the weight is 1), and
+/// hit triangle `triangle` at distance `t`, whose front faces the ray at
 /// cosine `cos_light`.
 #[inline]
 pub fn emission_weight(
     estimator: &Estimator,
     lights: &Lights,
-    bsdf_pdf: f32,
+    (bsdf_pdf, o): (f32, V3<f32>),
     triangle: u32,
     t: f32,
     cos_light: f32,
@@ -237,7 +241,7 @@ pub fn emission_weight(
     if !estimator.samples_lights() || bsdf_pdf == 0.0 {
         return 1.0;
     }
-    let pdf_light = lights.pdf_area(triangle) * (t * t) / cos_light;
+    let pdf_light = lights.pdf_solid_angle(triangle, o, t, cos_light);
     power_heuristic(bsdf_pdf, pdf_light)
 }
 

@@ -196,7 +196,14 @@ impl ReferenceTracer {
         let (seen_from_front, normal) = facing(V3::from(front), V3::from(d));
         let mut radiance = if seen_from_front {
             let cos_light = -front.dot(d);
-            let w = emission_weight(est, &self.lights, bsdf_pdf, hit.triangle, hit.t, cos_light);
+            let w = emission_weight(
+                est,
+                &self.lights,
+                (bsdf_pdf, V3::from(o)),
+                hit.triangle,
+                hit.t,
+                cos_light,
+            );
             material.emission * w
         } else {
             Vec3::ZERO
@@ -227,7 +234,7 @@ impl ReferenceTracer {
             est.skip_light_numbers(sampler, path);
         } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);
-            if let Some(light) = self.lights.sample(u) {
+            if let Some(light) = self.lights.sample(V3::from(p), u) {
                 let vertex = (V3::from(p), normal, shading, V3::from(-d));
                 let (valid, shadow) = connect_shaded(&light, self.epsilon, vertex, &surface);
                 if valid {

@@ -7,7 +7,7 @@ use super::shadow::ShadowQueue;
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
-use crate::integrator::lights::{Emitter, Lights};
+use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, ShadowRay, connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
 use crate::math::{V3, Vec3x8};
@@ -57,21 +57,19 @@ fn sample_lights_8<S: Sampler>(
     (tables, lights): (&Tables, &Lights),
     shadows: &mut ShadowQueue,
 ) {
-    // Each lane's emitter and point on it; lanes past the last path
-    // get no emitter (never valid).
+    // Each lane's emitter and point on it (lanes past the last path are
+    // for nothing: no shadow ray is queued for them).
     let [u0, u1] = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
-    let mut u0 = u0.to_array();
-    let mut emitters = [&Emitter::NONE; 8];
     let mut tris = [queue.hit[i] as usize; 8];
-    for l in 0..lanes {
-        (emitters[l], u0[l]) = lights.pick(u0[l]);
-        tris[l] = queue.hit[i + l] as usize;
+    for (tri, &hit) in tris.iter_mut().zip(&queue.hit[i..i + lanes]) {
+        *tri = hit as usize;
     }
-    let light = lights.point_on(&Emitter::lanes(emitters), [f32x8::from(u0), u1]);
     let load3 =
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
     let p = hit_point(o, d, t);
+    let (emitters, u0) = lights.pick_8(u0, lanes);
+    let light = lights.point_on(&emitters, p, [u0, u1]);
     let front = tables.front_normals(&tris, o, d, t);
     let (seen_from_front, n) = facing(front, d);
     let surface = tables.surfaces(model, &tris);

@@ -33,7 +33,8 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
         let normal = tables.front_normal(tri, V3::new(ox[i], oy[i], oz[i]), d, t[i]);
         if facing(normal, d).0 {
             let cos_light = -glam::Vec3::from(normal).dot(glam::Vec3::from(d));
-            let w = emission_weight(estimator, lights, pdf[i], hit[i], t[i], cos_light);
+            let o = V3::new(ox[i], oy[i], oz[i]);
+            let w = emission_weight(estimator, lights, (pdf[i], o), hit[i], t[i], cos_light);
             lr[i] += beta[0][i] * (e[0] * w);
             lg[i] += beta[1][i] * (e[1] * w);
             lb[i] += beta[2][i] * (e[2] * w);
