@@ -346,7 +346,7 @@ impl<R: Real> LightPoint<R> {
 impl Lights {
     /// The emitters of `scene`: its triangles whose material emits and
     /// whose area is not zero (pairs that form a parallelogram as one,
-    /// [`parallelogram_partners`]), then its emissive spheres.
+    /// see the module documentation), then its emissive spheres.
     pub fn new(scene: &Scene) -> Self {
         let mut lights = Lights {
             emitter_of: vec![NOT_EMITTER; scene.triangles.len() + scene.spheres.len()],
