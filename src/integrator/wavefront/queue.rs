@@ -1,5 +1,7 @@
 //! The path queue: every live path's state, one plain column per field.
 
+use crate::film::AovSample;
+use crate::scene::{Aov, AovSet};
 use wide::f32x8;
 
 /// In [`PathQueue::hit`]: the ray hit nothing.
@@ -41,6 +43,78 @@ pub struct PathQueue<P> {
     /// Triangle hit, or [`NO_HIT`] (intersect stage output), or
     /// [`RETIRED`] (retire stage output).
     pub hit: Vec<u32>,
+    /// The AOV columns, when the render records AOVs along the paths
+    /// (albedo, normal or depth); `None` otherwise, and then they cost
+    /// nothing.
+    pub aov: Option<AovColumns>,
+}
+
+/// The AOVs each path records on its way ([`crate::integrator::aov`]):
+/// set by the *shade* stage ([`super::shade::record_aovs`]), added to the
+/// film by *retire*.
+#[derive(Clone, Debug)]
+pub struct AovColumns {
+    /// Whether albedo or normal are wanted (else only depth is recorded).
+    pub surface: bool,
+    /// 1 while the path has met no non-specular vertex (the albedo and
+    /// normal are still to be recorded), else 0.
+    pub pending: Vec<u8>,
+    /// Albedo at the first non-specular vertex, R, G, B (0 until then).
+    pub albedo: [Vec<f32>; 3],
+    /// Facing shading normal there, x, y, z (0 until then).
+    pub normal: [Vec<f32>; 3],
+    /// The camera ray's hit distance (`+inf` if it hit nothing).
+    pub depth: Vec<f32>,
+}
+
+impl AovColumns {
+    fn with_rows(rows: usize, surface: bool) -> Self {
+        let col = || vec![0.0f32; rows];
+        Self {
+            surface,
+            pending: vec![0; rows],
+            albedo: [col(), col(), col()],
+            normal: [col(), col(), col()],
+            depth: vec![f32::INFINITY; rows],
+        }
+    }
+
+    /// Rows `rows` start new paths: nothing recorded yet.
+    pub fn reset(&mut self, rows: std::ops::Range<usize>) {
+        self.pending[rows.clone()].fill(1);
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col[rows.clone()].fill(0.0);
+        }
+        self.depth[rows].fill(f32::INFINITY);
+    }
+
+    /// Path `i`'s AOVs, for the film.
+    #[inline]
+    pub fn sample(&self, i: usize) -> AovSample {
+        AovSample {
+            albedo: self.albedo.each_ref().map(|c| c[i]),
+            normal: self.normal.each_ref().map(|c| c[i]),
+            depth: self.depth[i],
+        }
+    }
+
+    #[inline]
+    fn move_row(&mut self, from: usize, to: usize) {
+        self.pending[to] = self.pending[from];
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col[to] = col[from];
+        }
+        self.depth[to] = self.depth[from];
+    }
+
+    #[inline]
+    fn swap_rows(&mut self, a: usize, b: usize) {
+        self.pending.swap(a, b);
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col.swap(a, b);
+        }
+        self.depth.swap(a, b);
+    }
 }
 
 impl<P: bytemuck::Pod> PathQueue<P> {
@@ -62,7 +136,20 @@ impl<P: bytemuck::Pod> PathQueue<P> {
             pdf: col(),
             t: col(),
             hit: vec![NO_HIT; rows],
+            aov: None,
         }
+    }
+
+    /// [`with_capacity`](Self::with_capacity), with AOV columns when
+    /// `aovs` asks for AOVs recorded along the paths (albedo, normal or
+    /// depth; the variance needs none).
+    pub fn with_aovs(n: usize, aovs: AovSet) -> Self {
+        let mut q = Self::with_capacity(n);
+        let surface = aovs.contains(Aov::Albedo) || aovs.contains(Aov::Normal);
+        if surface || aovs.contains(Aov::Depth) {
+            q.aov = Some(AovColumns::with_rows(q.capacity(), surface));
+        }
+        q
     }
 }
 
@@ -116,6 +203,9 @@ impl<P: Copy> PathQueue<P> {
         self.pdf[to] = self.pdf[from];
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
+        if let Some(aov) = &mut self.aov {
+            aov.move_row(from, to);
+        }
     }
 
     /// Exchange paths `a` and `b` (the intersect outputs too).
@@ -131,6 +221,15 @@ impl<P: Copy> PathQueue<P> {
         self.pdf.swap(a, b);
         self.t.swap(a, b);
         self.hit.swap(a, b);
+        if let Some(aov) = &mut self.aov {
+            aov.swap_rows(a, b);
+        }
+    }
+
+    /// Path `i`'s AOVs ([`AovSample::NONE`] without AOV columns).
+    #[inline]
+    pub fn aov_sample(&self, i: usize) -> AovSample {
+        self.aov.as_ref().map_or(AovSample::NONE, |a| a.sample(i))
     }
 
     /// Drop the [`RETIRED`] rows. Each hole is filled with the last live
