@@ -261,11 +261,7 @@ fn write_exr(
 /// to three) of an OpenEXR image's first part: `None` when any of its
 /// channels is missing. A layer of fewer than three channels repeats its
 /// last in the pixels' remaining components (depth: `[z, z, z]`).
-pub fn read_exr_layer(
-    path: &Path,
-    name: &str,
-    channels: &[&str],
-) -> Result<Option<Vec<[f32; 3]>>> {
+pub fn read_exr_layer(path: &Path, name: &str, channels: &[&str]) -> Result<Option<Vec<[f32; 3]>>> {
     assert!((1..=3).contains(&channels.len()));
     use exr::prelude::{ReadChannels, ReadLayers, read};
     let bad = |e: exr::error::Error| {

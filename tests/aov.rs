@@ -15,7 +15,7 @@
 mod common;
 
 use common::{TempDir, run_ok, run_refused};
-use wavetrace::film::{AccMeta, Film, FIXED_POINT_SCALE};
+use wavetrace::film::{AccMeta, FIXED_POINT_SCALE, Film};
 use wavetrace::output::{
     ALBEDO_LAYER, DEPTH_LAYER, NORMAL_LAYER, VARIANCE_LAYER, read_exr_layer, read_image,
     write_output,
@@ -211,7 +211,11 @@ fn wavefront_aovs_equal_the_reference_tracers_on_every_scene() {
         }
         checked.push(name);
     }
-    for must in ["cornell-spheres.toml", "smooth-mesh.toml", "cornell-materials.toml"] {
+    for must in [
+        "cornell-spheres.toml",
+        "smooth-mesh.toml",
+        "cornell-materials.toml",
+    ] {
         assert!(checked.iter().any(|n| n == must), "{must} not checked");
     }
 }
@@ -258,11 +262,19 @@ fn variance_equals_the_variance_of_per_sample_images() {
                 varied += (want > 1e-3) as usize;
             }
         }
-        assert!(varied > variance.len() / 2, "only {varied} noisy pixel channels");
+        assert!(
+            varied > variance.len() / 2,
+            "only {varied} noisy pixel channels"
+        );
         // One sample has no variance.
         let mut one = renderer.new_film();
         renderer.render_samples(0..1, &mut one);
-        assert!(image(&one, Aov::Variance).iter().flatten().all(|v| *v == 0.0));
+        assert!(
+            image(&one, Aov::Variance)
+                .iter()
+                .flatten()
+                .all(|v| *v == 0.0)
+        );
     }
 }
 
@@ -313,15 +325,18 @@ fn render_aovs(scene: &Scene, engine: Engine) -> Film {
 }
 
 /// Depth, albedo and normal where the answers are known: a plane at z = 5
-/// over the left half of the view, nothing on the right. The depth of a
-/// pixel is the mean of `5 / d_z` over its camera rays, so it lies between
-/// that of the pixel's point nearest the image centre and that of its
-/// farthest corner; pixels that see nothing are +inf. The albedo is the
-/// plane's reflectance, the normal faces the camera.
+/// over the left half of the view (its edge through the middle of pixel
+/// column 8), nothing on the right. The depth of a pixel is the mean of
+/// `5 / d_z` over its camera rays that hit, so it lies between that of the
+/// pixel's point nearest the image centre and that of its farthest corner;
+/// pixels that see nothing are +inf. The albedo is the plane's
+/// reflectance, the normal faces the camera (both times the fraction of
+/// the samples that hit).
 #[test]
 fn depth_albedo_and_normal_of_a_plane_at_a_known_distance() {
     let f = 40.0f32;
-    let scene = scene_of(f, 3, &quad("paint", 5.0, (-100.0, 0.0)));
+    // The edge x = 5 · 0.5 / f: the image-plane column u = 8.5.
+    let scene = scene_of(f, 3, &quad("paint", 5.0, (-100.0, 2.5 / f)));
     for engine in [Engine::Wavefront, Engine::Reference] {
         let film = render_aovs(&scene, engine);
         let depth = image(&film, Aov::Depth);
@@ -336,9 +351,13 @@ fn depth_albedo_and_normal_of_a_plane_at_a_known_distance() {
                 let i = (y * 16 + x) as usize;
                 let z = depth[i][0] as f64;
                 assert_eq!(depth[i][0], depth[i][2]);
-                if x < 8 {
+                let hits = film.aov.depth[i].hits;
+                if x <= 8 {
                     // Nearest point of [x, x+1] × [y, y+1] to (8, 6).
-                    let near = t((8.0f32).clamp(x as f32, x as f32 + 1.0), (6.0f32).clamp(y as f32, y as f32 + 1.0));
+                    let near = t(
+                        (8.0f32).clamp(x as f32, x as f32 + 1.0),
+                        (6.0f32).clamp(y as f32, y as f32 + 1.0),
+                    );
                     let far = [(0, 0), (0, 1), (1, 0), (1, 1)]
                         .map(|(dx, dy)| t((x + dx) as f32, (y + dy) as f32))
                         .into_iter()
@@ -347,19 +366,29 @@ fn depth_albedo_and_normal_of_a_plane_at_a_known_distance() {
                         near * (1.0 - 1e-6) <= z && z <= far * (1.0 + 1e-6),
                         "{engine:?} ({x}, {y}): depth {z} outside {near}..{far}"
                     );
-                    assert_eq!(albedo[i], [0.5, 0.25, 1.0], "{engine:?} ({x}, {y})");
-                    assert_eq!(normal[i], [0.0, 0.0, -1.0], "{engine:?} ({x}, {y})");
-                } else if x > 8 {
+                    let seen = hits as f32 / 6.0;
+                    assert_eq!(hits == 6, x < 8, "{engine:?} ({x}, {y}): {hits} hits");
+                    assert!(hits > 0, "{engine:?} ({x}, {y})");
+                    let close =
+                        |a: [f32; 3], b: [f32; 3]| (0..3).all(|c| (a[c] - b[c]).abs() < 1e-6);
+                    assert!(
+                        close(albedo[i], [0.5 * seen, 0.25 * seen, seen]),
+                        "{engine:?} ({x}, {y})"
+                    );
+                    assert!(close(normal[i], [0.0, 0.0, -seen]), "{engine:?} ({x}, {y})");
+                } else {
+                    assert_eq!(hits, 0);
                     assert_eq!(z, f64::INFINITY, "{engine:?} ({x}, {y}) sees nothing");
                     assert_eq!(albedo[i], [0.0; 3]);
                     assert_eq!(normal[i], [0.0; 3]);
                 }
             }
         }
-        // The hit counts: every sample of the left half, none of the right.
-        let hits: Vec<u64> = film.aov.depth.iter().map(|d| d.hits).collect();
-        assert_eq!(hits[0], 6);
-        assert_eq!(hits[15], 0);
+        // Column 8 is cut by the edge: some of its samples hit, some not.
+        let partial = (0..12)
+            .filter(|y| film.aov.depth[y * 16 + 8].hits < 6)
+            .count();
+        assert!(partial > 0, "{engine:?}: column 8 all hit");
     }
 }
 
@@ -417,8 +446,19 @@ fn outputs_carry_the_aovs_as_exr_layers_or_pfm_files() {
     assert_eq!(
         names,
         [
-            "B", "G", "R", "albedo.B", "albedo.G", "albedo.R", "depth.Z", "normal.X", "normal.Y",
-            "normal.Z", "variance.B", "variance.G", "variance.R"
+            "B",
+            "G",
+            "R",
+            "albedo.B",
+            "albedo.G",
+            "albedo.R",
+            "depth.Z",
+            "normal.X",
+            "normal.Y",
+            "normal.Z",
+            "variance.B",
+            "variance.G",
+            "variance.R"
         ]
     );
     assert_eq!(bits(&read_image(&exr).unwrap().rgb), bits(&film.to_rgb()));
@@ -433,7 +473,11 @@ fn outputs_carry_the_aovs_as_exr_layers_or_pfm_files() {
         assert_eq!(bits(&read), bits(&image(&film, aov)), "{name}");
     }
     // Some pixels see nothing: their depth is +inf in the file too.
-    assert!(image(&film, Aov::Depth).iter().any(|d| d[0] == f32::INFINITY));
+    assert!(
+        image(&film, Aov::Depth)
+            .iter()
+            .any(|d| d[0] == f32::INFINITY)
+    );
 
     for ext in ["png", "pfm"] {
         let out = dir.join(format!("b.{ext}"));
@@ -441,7 +485,12 @@ fn outputs_carry_the_aovs_as_exr_layers_or_pfm_files() {
         for aov in Aov::ALL {
             let side = dir.join(format!("b.{}.pfm", aov.name()));
             let read = read_image(&side).unwrap();
-            assert_eq!(bits(&read.rgb), bits(&image(&film, aov)), "{}", side.display());
+            assert_eq!(
+                bits(&read.rgb),
+                bits(&image(&film, aov)),
+                "{}",
+                side.display()
+            );
         }
     }
     // Without AOVs, only the image.
@@ -547,7 +596,10 @@ fn accumulation_file_versions() {
     cut.extend_from_slice(&check.to_le_bytes());
     std::fs::write(&v2, &cut).unwrap();
     let e = Film::load(&v2, None).unwrap_err().to_string();
-    assert!(e.contains("bytes of sums") && e.contains("normal,depth"), "{e}");
+    assert!(
+        e.contains("bytes of sums") && e.contains("normal,depth"),
+        "{e}"
+    );
 }
 
 /// The command line: `--aov` (an unknown name refused, naming it), the
@@ -557,45 +609,81 @@ fn accumulation_file_versions() {
 #[test]
 fn the_command_line_renders_merges_and_resumes_aovs() {
     let dir = TempDir::new("cli");
-    let small = ["--width", "16", "--height", "12", "--spp", "4", "--seed", "5"];
+    let small = [
+        "--width", "16", "--height", "12", "--spp", "4", "--seed", "5",
+    ];
     fn with<'a>(small: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
         [small, extra].concat()
     }
-    let e = run_refused(&dir, &with(&small, &["--aov", "albedo,z-depth", "--out", "x.png"]));
+    let e = run_refused(
+        &dir,
+        &with(&small, &["--aov", "albedo,z-depth", "--out", "x.png"]),
+    );
     assert!(e.contains("z-depth") && e.contains("variance"), "{e}");
 
-    run_ok(&dir, &with(&small, &["--aov", "depth,albedo", "--out", "a.png"]));
+    run_ok(
+        &dir,
+        &with(&small, &["--aov", "depth,albedo", "--out", "a.png"]),
+    );
     let mut files = dir.files();
     files.retain(|f| f.starts_with("a."));
     assert_eq!(files, ["a.albedo.pfm", "a.depth.pfm", "a.png"]);
 
     let all = ["--aov", "albedo,normal,depth,variance"];
-    run_ok(&dir, &with(&small, &[&all[..], &["--out", "single.exr"]].concat()));
+    run_ok(
+        &dir,
+        &with(&small, &[&all[..], &["--out", "single.exr"]].concat()),
+    );
     for i in 0..2 {
         let shard = format!("{i}/2");
         let part = format!("p{i}.wtacc");
         run_ok(
             &dir,
-            &with(&small, &[&all[..], &["--shard", &shard, "--partial", &part]].concat()),
+            &with(
+                &small,
+                &[&all[..], &["--shard", &shard, "--partial", &part]].concat(),
+            ),
         );
     }
-    run_ok(&dir, &["merge", "p1.wtacc", "p0.wtacc", "--out", "merged.exr"]);
+    run_ok(
+        &dir,
+        &["merge", "p1.wtacc", "p0.wtacc", "--out", "merged.exr"],
+    );
     let (a, b) = (dir.join("single.exr"), dir.join("merged.exr"));
     assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
-    assert!(read_exr_layer(&a, "variance", &["R", "G", "B"]).unwrap().is_some());
+    assert!(
+        read_exr_layer(&a, "variance", &["R", "G", "B"])
+            .unwrap()
+            .is_some()
+    );
 
     // A checkpoint of depth only, resumed asking for albedo: refused, and
     // the checkpoint is left as it was.
     run_ok(
         &dir,
-        &with(&small, &["--aov", "depth", "--checkpoint", "ck.wtacc", "--out", "ck.png"]),
+        &with(
+            &small,
+            &[
+                "--aov",
+                "depth",
+                "--checkpoint",
+                "ck.wtacc",
+                "--out",
+                "ck.png",
+            ],
+        ),
     );
     let before = std::fs::read(dir.join("ck.wtacc")).unwrap();
-    let mut more = with(&small, &["--aov", "albedo", "--resume", "ck.wtacc", "--out", "ck.png"]);
+    let mut more = with(
+        &small,
+        &["--aov", "albedo", "--resume", "ck.wtacc", "--out", "ck.png"],
+    );
     more[5] = "8";
     let e = run_refused(&dir, &more);
     assert!(
-        e.contains("ck.wtacc") && e.contains("holds the AOVs depth") && e.contains("asks for albedo"),
+        e.contains("ck.wtacc")
+            && e.contains("holds the AOVs depth")
+            && e.contains("asks for albedo"),
         "{e}"
     );
     assert!(std::fs::read(dir.join("ck.wtacc")).unwrap() == before);
@@ -603,4 +691,56 @@ fn the_command_line_renders_merges_and_resumes_aovs() {
     more[9] = "depth";
     run_ok(&dir, &more);
     assert_eq!(common::spp_of(&dir.join("ck.wtacc")), 8);
+}
+
+/// A scene file's `[integrator] aov` and a profile's `aov` ask for AOVs as
+/// `--aov` does (the flag wins over the profile, the profile over the
+/// scene); an unknown name is refused, naming it.
+#[test]
+fn scene_files_and_profiles_name_aovs() {
+    let text = |aov: &str| {
+        format!(
+            "[camera]\nposition = [0.0, 0.0, 0.0]\nforward = [0.0, 0.0, 1.0]\nup = [0.0, -1.0, 0.0]\nfocal_length_px = 8.0\nwidth = 8\nheight = 6\n\n[integrator]\naov = {aov}\n\n[materials.paint]\nreflectance = [0.5, 0.5, 0.5]\n\n{}",
+            quad("paint", 5.0, (-100.0, 100.0))
+        )
+    };
+    let parse = |aov: &str| wavetrace::scene::file::parse(&text(aov), "s.toml");
+    let scene = parse(r#"["depth", "albedo"]"#).unwrap();
+    let s = RenderSettings::for_scene(&scene);
+    assert_eq!(s.aovs, AovSet::of(&[Aov::Albedo, Aov::Depth]));
+    let e = parse(r#"["depth", "bogus"]"#).unwrap_err().to_string();
+    assert!(
+        e.contains("integrator.aov") && e.contains("\"bogus\""),
+        "{e}"
+    );
+
+    let dir = TempDir::new("profiles");
+    std::fs::write(dir.join("s.toml"), text(r#"["depth"]"#)).unwrap();
+    std::fs::write(dir.join("p.toml"), "spp = 2\naov = [\"variance\"]\n").unwrap();
+    std::fs::write(dir.join("bad.toml"), "aov = [\"albedo\", \"nope\"]\n").unwrap();
+    run_ok(&dir, &["s.toml", "--spp", "2", "--out", "scene.png"]);
+    run_ok(
+        &dir,
+        &["s.toml", "--profile", "p.toml", "--out", "profile.png"],
+    );
+    run_ok(
+        &dir,
+        &[
+            "s.toml",
+            "--profile",
+            "p.toml",
+            "--aov",
+            "normal",
+            "--out",
+            "flag.png",
+        ],
+    );
+    let e = run_refused(&dir, &["s.toml", "--profile", "bad.toml", "--out", "x.png"]);
+    assert!(e.contains("\"nope\""), "{e}");
+    let mut files = dir.files();
+    files.retain(|f| f.ends_with(".pfm"));
+    assert_eq!(
+        files,
+        ["flag.normal.pfm", "profile.variance.pfm", "scene.depth.pfm"]
+    );
 }

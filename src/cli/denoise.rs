@@ -4,8 +4,7 @@ use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::fs::check_writable;
 use crate::output::{
-    ImageFormat, aov_layer, check_output_format, read_exr_layer, read_image,
-    write_image_with_aovs,
+    ImageFormat, aov_layer, check_output_format, read_exr_layer, read_image, write_image_with_aovs,
 };
 use crate::scene::Aov;
 use clap::Args;

@@ -369,7 +369,11 @@ fn plan(args: RenderArgs) -> Result<Job> {
             check_output_format(noisy)?;
             check_writable(noisy)?;
             let mut files = vec![("--out", out.as_deref()), ("--keep-noisy", Some(noisy))];
-            files.extend(aov_files.iter().map(|f| ("an AOV file of --out", Some(f.as_path()))));
+            files.extend(
+                aov_files
+                    .iter()
+                    .map(|f| ("an AOV file of --out", Some(f.as_path()))),
+            );
             check_distinct(&files)?;
         }
         Some(Denoiser::new()?)
@@ -418,7 +422,11 @@ fn plan(args: RenderArgs) -> Result<Job> {
         ("--stats", args.stats.as_deref()),
         ("the checkpoint", checkpoint.as_deref()),
     ];
-    files.extend(aov_files.iter().map(|f| ("an AOV file of --out", Some(f.as_path()))));
+    files.extend(
+        aov_files
+            .iter()
+            .map(|f| ("an AOV file of --out", Some(f.as_path()))),
+    );
     check_distinct(&files)?;
     // The checkpoint to continue is read and checked in full before any
     // work: a missing, truncated, corrupt or foreign one is refused here and
@@ -427,27 +435,6 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let resumed = match &args.resume {
         Some(path) => {
             let (film, saved) = Film::load_with_meta(path, Some(meta.settings_hash))?;
-            if film.aovs() != settings.aovs {
-                return Err(WtaccError {
-                    path: path.clone(),
-                    message: format!(
-                        "holds the AOVs {}, but this render asks for {}{}; a checkpoint's AOVs cannot change: resume it {}",
-                        film.aovs(),
-                        settings.aovs,
-                        if args.denoise {
-                            " (--denoise needs albedo,normal)"
-                        } else {
-                            ""
-                        },
-                        if film.aovs().is_empty() {
-                            "without --aov or --denoise".to_string()
-                        } else {
-                            format!("with --aov {}", film.aovs())
-                        }
-                    ),
-                }
-                .into());
-            }
             crate::run::session::check_resumable(&film, &settings, &work.range).map_err(
                 |mut message| {
                     if let Some((i, n)) = saved.shard {

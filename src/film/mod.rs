@@ -220,7 +220,9 @@ pub enum MergeError {
         ours: (u32, u32),
     },
     /// The films hold different AOVs.
-    #[error("holds AOVs {theirs}, expected {ours} (films of different --aov sets cannot be combined)")]
+    #[error(
+        "holds AOVs {theirs}, expected {ours} (films of different --aov sets cannot be combined)"
+    )]
     Aovs {
         /// The refused film's AOVs.
         theirs: AovSet,
@@ -252,6 +254,51 @@ mod tests {
         assert_eq!(s, [0; 3]);
         assert!(accumulate(&mut s, Vec3::new(0.5, 1.0, 0.0)));
         assert_eq!(s, [1 << 31, 1 << 32, 0]);
+    }
+
+    /// The squares the variance sums are those of the very values the
+    /// radiance sums, rounded once; the AOVs' sums add up like the
+    /// radiance's.
+    #[test]
+    fn aov_sums_add_the_fixed_point_values() {
+        let mut film = Film::with_aovs(2, 1, AovSet::ALL);
+        let mut tiles = film.aov.tiles_mut(1, 2);
+        assert_eq!(tiles.len(), 2);
+        let mut s = [0; 3];
+        let sample = AovSample {
+            albedo: [0.5, 2.0, -1.0],
+            normal: [-1.0, 0.25, 1.5],
+            depth: 3.0,
+        };
+        assert!(accumulate_with_aovs(
+            &mut s,
+            (&mut tiles[1], 0),
+            Vec3::new(3.0, 0.5, 0.0),
+            &sample
+        ));
+        assert!(!accumulate_with_aovs(
+            &mut s,
+            (&mut tiles[1], 0),
+            Vec3::NAN,
+            &AovSample::NONE
+        ));
+        drop(tiles);
+        let q = 1u128 << 32;
+        assert_eq!(s, [3 * q, q / 2, 0]);
+        let a = &film.aov;
+        assert_eq!(a.albedo, [[0; 3], [q / 2, q, 0]], "clamped to [0, 1]");
+        assert_eq!(a.normal, [[0; 3], [-(q as i128), q as i128 / 4, q as i128]]);
+        assert_eq!(
+            a.depth[1],
+            aov::DepthSum {
+                sum: 3 * q,
+                hits: 1
+            }
+        );
+        assert_eq!(a.squares[1], [9 * q, q / 4, 0]);
+        // (2^63 - 1)^2 / 2^32 = 2^94 - 2^32 + 2^-32, rounded: no overflow.
+        assert_eq!(aov::square(u64::MAX >> 1), (1 << 94) - q);
+        assert_eq!(aov::square(3 << 31), 9 << 30); // 1.5^2 = 2.25, exactly
     }
 
     #[test]
@@ -314,6 +361,14 @@ mod tests {
             a.merge(&Film::new(1, 2)),
             Err(MergeError::Size { .. })
         ));
+        let depth = AovSet::of(&[Aov::Depth]);
+        assert_eq!(
+            a.merge(&Film::with_aovs(2, 1, depth)),
+            Err(MergeError::Aovs {
+                theirs: depth,
+                ours: AovSet::NONE
+            })
+        );
         assert_eq!(a, before);
     }
 

@@ -25,8 +25,8 @@
 
 use super::aov::{DepthSum, bytes_per_pixel, most};
 use super::{AovSums, Film};
-use crate::scene::{Aov, AovSet};
 use crate::fs::{FileError, write_atomic};
+use crate::scene::{Aov, AovSet};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -62,7 +62,8 @@ impl Film {
             invalid_samples: self.invalid_samples,
             spp: meta.spp,
             shard: meta.shard.map(|(i, n)| [i, n]),
-            aov: (version == 2).then(|| self.aovs().names().iter().map(|n| n.to_string()).collect()),
+            aov: (version == 2)
+                .then(|| self.aovs().names().iter().map(|n| n.to_string()).collect()),
         };
         let header = serde_json::to_vec(&header).expect("header serialises");
         let per_pixel = 48 + self.aovs().iter().map(bytes_per_pixel).sum::<usize>();
@@ -132,8 +133,7 @@ impl Film {
         let mut bytes = Vec::new();
         file.read_to_end(&mut bytes)
             .map_err(|e| bad(format!("cannot read: {e}")))?;
-        if bytes.len() < ACC_MAGIC_PREFIX.len() + 1 + 8 + 16
-            || !bytes.starts_with(ACC_MAGIC_PREFIX)
+        if bytes.len() < ACC_MAGIC_PREFIX.len() + 1 + 8 + 16 || !bytes.starts_with(ACC_MAGIC_PREFIX)
         {
             return Err(bad("not a wavetrace accumulation file".into()));
         }
@@ -238,9 +238,8 @@ impl Film {
                 i / w
             ))
         };
-        let u128_at = |b: &[u8], at: usize| {
-            u128::from_le_bytes(b[at..at + 16].try_into().unwrap_or([0; 16]))
-        };
+        let u128_at =
+            |b: &[u8], at: usize| u128::from_le_bytes(b[at..at + 16].try_into().unwrap_or([0; 16]));
         let (radiance, mut rest) = data.split_at(pixels * 48);
         let most_radiance = (held as u128) << 63;
         let mut sums = Vec::with_capacity(pixels);

@@ -3,7 +3,9 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{AovSet, Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle};
+use super::{
+    AovSet, Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle,
+};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;

@@ -223,7 +223,10 @@ mod tests {
         let set = AovSet::parse_list("variance, albedo,albedo").unwrap();
         assert_eq!(set.names(), ["albedo", "variance"]);
         assert_eq!(set.to_string(), "albedo,variance");
-        assert_eq!(AovSet::parse_list("albedo,normal").unwrap(), AovSet::DENOISE);
+        assert_eq!(
+            AovSet::parse_list("albedo,normal").unwrap(),
+            AovSet::DENOISE
+        );
         assert_eq!(
             AovSet::parse_list("albedo,normal,depth,variance").unwrap(),
             AovSet::ALL

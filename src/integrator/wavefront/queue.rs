@@ -318,6 +318,44 @@ mod tests {
         }
     }
 
+    /// Compaction and swaps move the AOV columns with their rows.
+    #[test]
+    fn aov_columns_move_with_their_rows() {
+        for n in [1, 7, 9, 64, 100] {
+            let mut q = queue(n, |i| i % 3 == 1);
+            let mut with = PathQueue::<u64>::with_aovs(n, AovSet::ALL);
+            assert!(
+                PathQueue::<u64>::with_aovs(n, AovSet::of(&[Aov::Variance]))
+                    .aov
+                    .is_none()
+            );
+            with.set_len(n);
+            (with.pixel, with.hit) = (q.pixel.clone(), q.hit.clone());
+            let aov = with.aov.as_mut().unwrap();
+            aov.reset(0..n);
+            for i in 0..n {
+                aov.albedo[1][i] = i as f32;
+                aov.normal[2][i] = -(i as f32);
+                aov.depth[i] = 2.0 * i as f32;
+                aov.pending[i] = (i % 2) as u8;
+            }
+            with.swap_rows(0, n - 1);
+            with.swap_rows(0, n - 1);
+            with.compact();
+            q.compact();
+            assert_eq!(with.len(), q.len());
+            for r in 0..with.len() {
+                let i = with.pixel[r] as usize;
+                let a = with.aov_sample(r);
+                assert_eq!(
+                    (a.albedo[1], a.normal[2], a.depth),
+                    (i as f32, -(i as f32), 2.0 * i as f32)
+                );
+                assert_eq!(with.aov.as_ref().unwrap().pending[r], (i % 2) as u8);
+            }
+        }
+    }
+
     #[test]
     fn capacity_is_padded_to_whole_lanes() {
         for (n, rows) in [(1, 8), (8, 8), (9, 16), (4096, 4096)] {
