@@ -245,7 +245,7 @@ fn variance_equals_the_variance_of_per_sample_images() {
         let variance = image(&film, Aov::Variance);
         let mut varied = 0;
         for (p, v) in variance.iter().enumerate() {
-            for c in 0..3 {
+            for (c, &got) in v.iter().enumerate() {
                 // Each sample's fixed-point value, as its film holds it.
                 let q: Vec<u128> = singles.iter().map(|f| f.sums[p][c]).collect();
                 let squares: u128 = q.iter().map(|&q| (q * q + (1 << 31)) >> 32).sum();
@@ -254,7 +254,7 @@ fn variance_equals_the_variance_of_per_sample_images() {
                 let x: Vec<f64> = q.iter().map(|&q| q as f64 / FIXED_POINT_SCALE).collect();
                 let mean = x.iter().sum::<f64>() / n as f64;
                 let want = x.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1) as f64;
-                let got = v[c] as f64;
+                let got = got as f64;
                 assert!(
                     (got - want).abs() <= 1e-6 * want + 1e-9 * (1.0 + mean * mean),
                     "{engine:?}: pixel {p} channel {c}: variance {got}, by hand {want}"

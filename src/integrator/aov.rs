@@ -11,8 +11,8 @@
 //!   vertex where the definition says;
 //! - the [wavefront engine](super::wavefront): the path queue has AOV
 //!   columns (when a render asks for AOVs), filled in the *shade* stage
-//!   ([`record`](super::wavefront::shade::record_aovs)) and added to the
-//!   film with the radiance in *retire*.
+//!   (`shade::record_aovs`) and added to the film with the radiance in
+//!   *retire*.
 //!
 //! **Definitions.** A path's *vertices* are the surfaces its rays hit, the
 //! camera ray's hit being depth 0, up to the last depth the maximum depth

@@ -75,9 +75,9 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32) {
         let p = hit_point(o, d, t);
         let shading = tables.shading_normal(prim, front, p).unwrap_or(front);
         let ns = shading_facing(seen_from_front, ng, shading, -d);
-        let material = tables.material_of[prim] as usize;
-        for c in 0..3 {
-            aov.albedo[c][i] = tables.albedo[c][material];
+        let albedo = tables.albedo[tables.material_of[prim] as usize];
+        for (col, a) in aov.albedo.iter_mut().zip(albedo) {
+            col[i] = a;
         }
         (aov.normal[0][i], aov.normal[1][i], aov.normal[2][i]) = (ns.x, ns.y, ns.z);
     }

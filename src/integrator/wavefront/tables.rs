@@ -32,8 +32,8 @@ pub struct Tables {
     /// channel (columns indexed by material).
     pub tint: [Vec<f32>; 3],
     /// Each material's albedo AOV ([`crate::integrator::aov::albedo`]),
-    /// per RGB channel (columns indexed by material).
-    pub albedo: [Vec<f32>; 3],
+    /// RGB, indexed by material.
+    pub albedo: Vec<[f32; 3]>,
     /// Each material's GGX roughness (metal).
     pub alpha: Vec<f32>,
     /// Each material's index of refraction (glass).
@@ -70,11 +70,9 @@ impl Tables {
             brdf: [0, 1, 2].map(|c| materials.iter().map(|m| brdf(m)[c]).collect()),
             material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
-            albedo: [0, 1, 2].map(|c| {
-                (scene.materials.iter())
-                    .map(|m| crate::integrator::aov::albedo(m)[c])
-                    .collect()
-            }),
+            albedo: (scene.materials.iter())
+                .map(|m| crate::integrator::aov::albedo(m).to_array())
+                .collect(),
             alpha: scene.materials.iter().map(|m| m.alpha).collect(),
             ior: scene.materials.iter().map(|m| m.ior).collect(),
             smooth: if scene.vertex_normals.is_empty() {
