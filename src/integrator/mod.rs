@@ -97,7 +97,7 @@ pub enum Stage {
     Generate,
     /// Closest hits.
     Intersect,
-    /// Emission seen at the hits.
+    /// Emission seen at the hits (and the AOVs recorded there).
     Shade,
     /// Finished paths added to the film, and dropped from the queue.
     Retire,
