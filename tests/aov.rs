@@ -588,6 +588,26 @@ fn accumulation_file_versions() {
             "{e}"
         );
     }
+    // Forged AOV sums, checksum and all, are refused: a depth hit count
+    // above the samples held (the last 24 bytes of data: the last pixel's
+    // depth), and a normal sum beyond what unit normals can make.
+    let data_end = bytes.len() - 16;
+    let pixels = (with.width * with.height) as usize;
+    let forge = |at: usize, value: &[u8]| {
+        let mut b = bytes[..data_end].to_vec();
+        b[at..at + value.len()].copy_from_slice(value);
+        let check = xxhash_rust::xxh3::xxh3_128(&b);
+        b.extend_from_slice(&check.to_le_bytes());
+        std::fs::write(&v2, &b).unwrap();
+        Film::load(&v2, None).unwrap_err().to_string()
+    };
+    let e = forge(data_end - 8, &5u64.to_le_bytes());
+    assert!(e.contains("holds a depth sum larger than its 4 sample(s)"), "{e}");
+    let normal_start = data_end - pixels * (48 + 24);
+    let e = forge(normal_start, &(-(5i128 << 32)).to_le_bytes());
+    assert!(e.contains("pixel (0, 0) holds a normal sum larger"), "{e}");
+    std::fs::write(&v2, &bytes).unwrap();
+    assert_eq!(Film::load(&v2, None).unwrap().0, with);
     // A version 2 header on version 1 data, and a truncated AOV plane.
     std::fs::write(&old, with_version(&version_1_bytes(&plain, hash), 2)).unwrap();
     assert!(Film::load(&old, None).is_err());

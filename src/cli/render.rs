@@ -641,7 +641,10 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
     let mut errors = Vec::new();
     // --denoise: the denoised image, for the final --out, guided by the
     // film's albedo and normal AOVs (all its samples).
-    let aov_images = film.aov_images();
+    let aov_images = match job.denoiser {
+        Some(_) => film.aov_images(),
+        None => Vec::new(), // written by `write_output`
+    };
     let aovs: Vec<(Aov, &[[f32; 3]])> = aov_images.iter().map(|(a, p)| (*a, &p[..])).collect();
     let denoised = match (&mut job.denoiser, report.stop) {
         (Some(denoiser), Stop::Complete | Stop::TimeLimit) => {
