@@ -602,7 +602,10 @@ fn accumulation_file_versions() {
         Film::load(&v2, None).unwrap_err().to_string()
     };
     let e = forge(data_end - 8, &5u64.to_le_bytes());
-    assert!(e.contains("holds a depth sum larger than its 4 sample(s)"), "{e}");
+    assert!(
+        e.contains("holds a depth sum larger than its 4 sample(s)"),
+        "{e}"
+    );
     let normal_start = data_end - pixels * (48 + 24);
     let e = forge(normal_start, &(-(5i128 << 32)).to_le_bytes());
     assert!(e.contains("pixel (0, 0) holds a normal sum larger"), "{e}");
