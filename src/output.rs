@@ -1,12 +1,22 @@
 //! Outputs: images (PNG, OpenEXR, PFM) and accumulation files, written
 //! whole or not at all, and the checks on output paths made before any
 //! work starts.
+//!
+//! An image with AOVs ([`write_image_with_aovs`]): an OpenEXR image holds
+//! them as layers of the one multi-layer file ([`aov_layer`]: `albedo.R/G/B`,
+//! `normal.X/Y/Z`, `depth.Z`, `variance.R/G/B`, beside the colour's `R`,
+//! `G`, `B`); a PNG or PFM image gets one PFM file per AOV beside it
+//! ([`aov_path`]: `STEM.albedo.pfm`, `STEM.normal.pfm`, `STEM.depth.pfm`,
+//! `STEM.variance.pfm` for `STEM.png`), PFM because it keeps the floats
+//! exactly (a PNG would clamp normals, depths and variances). A PFM's
+//! depth repeats its one value in all three channels.
 
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
 use crate::fs::{FileError, write_atomic};
+use crate::scene::Aov;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The extension of accumulation (partial) files.
 pub const PARTIAL_EXTENSION: &str = "wtacc";
@@ -107,22 +117,83 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
     Ok(written?)
 }
 
-/// A layer of three channels of a multi-layer EXR image, beside the
-/// colour (`R`, `G`, `B`): channels `name.c` for each `c` of `channels`.
+/// A layer of one to three channels of a multi-layer EXR image, beside
+/// the colour (`R`, `G`, `B`): channels `name.c` for each `c` of
+/// `channels`, the `k`-th from component `k` of the pixels.
 #[derive(Clone, Copy, Debug)]
 pub struct ExrLayer<'a> {
     /// The layer's name (`albedo`).
     pub name: &'a str,
-    /// Its channels' names within the layer (`R`, `G`, `B`).
-    pub channels: [&'a str; 3],
+    /// Its channels' names within the layer (`R`, `G`, `B`): one to three.
+    pub channels: &'a [&'a str],
     /// Row-major pixels, row 0 at the top.
     pub pixels: &'a [[f32; 3]],
 }
 
 /// The albedo layer's name and channels in wavetrace's EXR images.
-pub const ALBEDO_LAYER: (&str, [&str; 3]) = ("albedo", ["R", "G", "B"]);
+pub const ALBEDO_LAYER: (&str, &[&str]) = ("albedo", &["R", "G", "B"]);
 /// The normal layer's name and channels in wavetrace's EXR images.
-pub const NORMAL_LAYER: (&str, [&str; 3]) = ("normal", ["X", "Y", "Z"]);
+pub const NORMAL_LAYER: (&str, &[&str]) = ("normal", &["X", "Y", "Z"]);
+/// The depth layer's name and channel in wavetrace's EXR images.
+pub const DEPTH_LAYER: (&str, &[&str]) = ("depth", &["Z"]);
+/// The variance layer's name and channels in wavetrace's EXR images.
+pub const VARIANCE_LAYER: (&str, &[&str]) = ("variance", &["R", "G", "B"]);
+
+/// The EXR layer name and channels of an AOV.
+pub fn aov_layer(aov: Aov) -> (&'static str, &'static [&'static str]) {
+    match aov {
+        Aov::Albedo => ALBEDO_LAYER,
+        Aov::Normal => NORMAL_LAYER,
+        Aov::Depth => DEPTH_LAYER,
+        Aov::Variance => VARIANCE_LAYER,
+    }
+}
+
+/// The file an AOV of the PNG or PFM image `image` goes to: `STEM.NAME.pfm`
+/// beside it (`out.png` → `out.albedo.pfm`). `None` for an EXR image
+/// (its AOVs are layers) or an accumulation file (it holds their sums).
+pub fn aov_path(image: &Path, aov: Aov) -> Option<PathBuf> {
+    match ImageFormat::from_path(image) {
+        Ok(ImageFormat::Png | ImageFormat::Pfm) => {
+            Some(image.with_extension(format!("{}.pfm", aov.name())))
+        }
+        _ => None,
+    }
+}
+
+/// Write a linear RGB image with AOV images `aovs` (each of the image's
+/// size), atomically, as the module's docs say: EXR layers, or PFM files
+/// beside a PNG or PFM. Without AOVs, exactly [`write_image`].
+pub fn write_image_with_aovs(
+    path: &Path,
+    (width, height): (u32, u32),
+    rgb: &[[f32; 3]],
+    aovs: &[(Aov, &[[f32; 3]])],
+) -> Result<()> {
+    if aovs.is_empty() {
+        return write_image(path, width, height, rgb);
+    }
+    if ImageFormat::from_path(path)? == ImageFormat::Exr {
+        let layers: Vec<ExrLayer<'_>> = aovs
+            .iter()
+            .map(|(aov, pixels)| {
+                let (name, channels) = aov_layer(*aov);
+                ExrLayer {
+                    name,
+                    channels,
+                    pixels,
+                }
+            })
+            .collect();
+        return write_exr_layers(path, width, height, rgb, &layers);
+    }
+    write_image(path, width, height, rgb)?;
+    for (aov, pixels) in aovs {
+        let side = aov_path(path, *aov).expect("a PNG or PFM image");
+        write_image(&side, width, height, pixels)?;
+    }
+    Ok(())
+}
 
 /// Write a multi-layer OpenEXR image, atomically: the colour `rgb` as
 /// channels `R`, `G`, `B` and each of `layers` as `name.channel`, all
@@ -146,7 +217,8 @@ pub fn write_exr_layers(
     }
     for layer in layers {
         assert_eq!(layer.pixels.len(), n);
-        for (c, channel) in layer.channels.into_iter().enumerate() {
+        assert!((1..=3).contains(&layer.channels.len()));
+        for (c, channel) in layer.channels.iter().enumerate() {
             let name = format!("{}.{channel}", layer.name);
             list.push(AnyChannel::new(name.as_str(), plane(layer.pixels, c)));
         }
@@ -185,13 +257,12 @@ fn write_exr(
     })
 }
 
-/// Read the layer `name` (channels `name.c` for each of `channels`) of an
-/// OpenEXR image's first part: `None` when any of its channels is missing.
-pub fn read_exr_layer(
-    path: &Path,
-    name: &str,
-    channels: [&str; 3],
-) -> Result<Option<Vec<[f32; 3]>>> {
+/// Read the layer `name` (channels `name.c` for each of `channels`, one
+/// to three) of an OpenEXR image's first part: `None` when any of its
+/// channels is missing. A layer of fewer than three channels repeats its
+/// last in the pixels' remaining components (depth: `[z, z, z]`).
+pub fn read_exr_layer(path: &Path, name: &str, channels: &[&str]) -> Result<Option<Vec<[f32; 3]>>> {
+    assert!((1..=3).contains(&channels.len()));
     use exr::prelude::{ReadChannels, ReadLayers, read};
     let bad = |e: exr::error::Error| {
         Error::Settings(format!(
@@ -212,13 +283,18 @@ pub fn read_exr_layer(
     let list = &image.layer_data.channel_data.list;
     let n = image.layer_data.size.0 * image.layer_data.size.1;
     let mut out = vec![[0.0f32; 3]; n];
-    for (c, channel) in channels.into_iter().enumerate() {
+    for (c, channel) in channels.iter().enumerate() {
         let full = format!("{name}.{channel}");
         let Some(found) = list.iter().find(|ch| ch.name.to_string() == full) else {
             return Ok(None);
         };
+        let last = c + 1 == channels.len();
         for (p, v) in out.iter_mut().zip(found.sample_data.values_as_f32()) {
-            p[c] = v;
+            if last {
+                p[c..].fill(v);
+            } else {
+                p[c] = v;
+            }
         }
     }
     Ok(Some(out))
@@ -256,14 +332,16 @@ pub fn check_partial_path(path: &Path) -> Result<()> {
     }
 }
 
-/// Write `film` to `path`, atomically: a partial file for `.wtacc`, else an
-/// image in the format of the extension.
+/// Write `film` to `path`, atomically: a partial file for `.wtacc` (with
+/// the film's AOV sums), else an image in the format of the extension with
+/// the film's AOVs ([`write_image_with_aovs`]).
 pub fn write_output(path: &Path, film: &Film, meta: &AccMeta) -> Result<()> {
     if is_partial_path(path) {
-        Ok(film.save_with_meta(path, meta)?)
-    } else {
-        write_image(path, film.width, film.height, &film.to_rgb())
+        return Ok(film.save_with_meta(path, meta)?);
     }
+    let images = film.aov_images();
+    let aovs: Vec<(Aov, &[[f32; 3]])> = images.iter().map(|(a, p)| (*a, &p[..])).collect();
+    write_image_with_aovs(path, (film.width, film.height), &film.to_rgb(), &aovs)
 }
 
 #[cfg(test)]

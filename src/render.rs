@@ -3,14 +3,14 @@
 use crate::accel::bvh::{Bvh, BvhOptions};
 use crate::accel::simd::SimdWidth;
 use crate::error::{Error, Result};
-use crate::film::{Film, PixelSum};
-use crate::integrator::aov::{self, Aovs, aov_samples};
+use crate::film::aov::bytes_per_pixel;
+use crate::film::{AovSums, Film, PixelSum};
 use crate::integrator::nee::Estimator;
 use crate::integrator::reference::ReferenceTracer;
 use crate::integrator::sampler::{Independent, Sampler, Sobol};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
 use crate::integrator::{Counters, Frame, TileJob, estimator_fingerprint};
-use crate::scene::{Integrator, SamplerKind, Scene};
+use crate::scene::{AovSet, Integrator, SamplerKind, Scene};
 use rayon::prelude::*;
 use std::any::Any;
 use std::ops::Range;
@@ -85,12 +85,25 @@ pub struct RenderSettings {
     /// [`MemoryEstimate`]; `None`: the system's memory
     /// ([`system_memory`]). Does not change the image.
     pub memory_limit: Option<u64>,
+    /// The auxiliary outputs to accumulate beside the radiance
+    /// ([`crate::integrator::aov`]). Do not change the image (and are not
+    /// in [`image_hash`](Self::image_hash): accumulation files record
+    /// their AOVs themselves).
+    pub aovs: AovSet,
 }
 
 /// Bytes per pixel of a render: the film's sums (48), the sums of the
 /// sample pass being rendered (48), the linear image written out (12) and
 /// its encoding (up to 16).
 pub const FILM_BYTES_PER_PIXEL: u64 = 124;
+
+/// Bytes per pixel an AOV adds to a render: its sums in the film and in the
+/// pass being rendered, its image and that image's encoding (12 each).
+pub fn aov_bytes_per_pixel(aovs: AovSet) -> u64 {
+    aovs.iter()
+        .map(|a| 2 * bytes_per_pixel(a) as u64 + 24)
+        .sum()
+}
 
 /// Bytes per path of a worker thread's wavefront queues: the path queue
 /// (about 70), the ray batch and the shadow-ray queue (a bound, not a
@@ -186,6 +199,7 @@ impl RenderSettings {
             rr_depth: scene.options.rr_depth,
             simd: SimdWidth::detect(),
             memory_limit: None,
+            aovs: scene.options.aov.unwrap_or_default(),
         }
     }
 
@@ -195,7 +209,7 @@ impl RenderSettings {
         let pixels = self.width as u64 * self.height as u64;
         let paths = (self.threads as u64).saturating_mul(self.batch_size.div_ceil(8) as u64 * 8);
         MemoryEstimate {
-            film: pixels.saturating_mul(FILM_BYTES_PER_PIXEL),
+            film: pixels.saturating_mul(FILM_BYTES_PER_PIXEL + aov_bytes_per_pixel(self.aovs)),
             queues: paths.saturating_mul(QUEUE_BYTES_PER_PATH),
             bvh: (triangles as u64).saturating_mul(BVH_BYTES_PER_TRIANGLE),
         }
@@ -411,33 +425,18 @@ impl Renderer {
         &self.settings
     }
 
-    /// The albedo and normal buffers ([`aov`]) of
-    /// this render, over its first `min(spp, 16)` camera samples per pixel,
-    /// on the render's threads. `scene` must be the scene this renderer was
-    /// made for.
-    pub fn aovs(&self, scene: &Scene) -> Aovs {
-        let s = &self.settings;
-        let tracer = ReferenceTracer::with_bvh(scene, s.max_depth, self.bvh.clone());
-        let size = (s.width, s.height);
-        let samples = aov_samples(s.spp);
-        let camera = &self.frame.camera;
-        self.pool.install(|| match s.sampler {
-            SamplerKind::Independent => {
-                aov::compute(&tracer, camera, &Independent::new(s.seed), size, samples)
-            }
-            SamplerKind::Sobol => aov::compute(&tracer, camera, &Sobol::new(s.seed), size, samples),
-        })
-    }
-
-    /// A new, empty film of the right size.
+    /// A new, empty film of the right size, with the settings' AOVs.
     pub fn new_film(&self) -> Film {
-        Film::new(self.settings.width, self.settings.height)
+        let s = &self.settings;
+        Film::with_aovs(s.width, s.height, s.aovs)
     }
 
-    /// Add samples `range` of every pixel to `film`.
+    /// Add samples `range` of every pixel to `film` (which must have the
+    /// size and the AOVs of the settings).
     pub fn render_samples(&self, range: Range<u32>, film: &mut Film) -> Counters {
         self.check_film(film);
-        let (counters, complete) = self.render_sums(range.clone(), &mut film.sums, &|| false);
+        let sums = (&mut film.sums[..], &mut film.aov);
+        let (counters, complete) = self.render_sums(range.clone(), sums, &|| false);
         assert!(complete, "nothing asked to stop");
         film.add_range(range);
         film.invalid_samples += counters.invalid_samples;
@@ -457,7 +456,9 @@ impl Renderer {
     ) -> Option<Counters> {
         self.check_film(film);
         let mut pass = vec![[0u128; 3]; film.sums.len()];
-        let (counters, complete) = self.render_sums(range.clone(), &mut pass, stop);
+        let mut pass_aov = AovSums::new(film.aovs(), film.sums.len());
+        let (counters, complete) =
+            self.render_sums(range.clone(), (&mut pass, &mut pass_aov), stop);
         if !complete {
             return None;
         }
@@ -466,6 +467,7 @@ impl Renderer {
                 *s += p;
             }
         }
+        film.aov.add(&pass_aov);
         film.add_range(range);
         film.invalid_samples += counters.invalid_samples;
         Some(counters)
@@ -476,15 +478,17 @@ impl Renderer {
             (film.width, film.height),
             (self.settings.width, self.settings.height)
         );
+        assert_eq!(film.aovs(), self.settings.aovs, "the film's AOVs");
     }
 
-    /// Add samples `range` of every pixel to `sums`, a tile at a time;
-    /// tiles not yet started when `stop()` turns true are skipped. Returns
-    /// the work counted and whether every tile was rendered.
+    /// Add samples `range` of every pixel to `sums` (radiance, AOVs), a
+    /// tile at a time; tiles not yet started when `stop()` turns true are
+    /// skipped. Returns the work counted and whether every tile was
+    /// rendered.
     fn render_sums(
         &self,
         range: Range<u32>,
-        sums: &mut [PixelSum],
+        sums: (&mut [PixelSum], &mut AovSums),
         stop: &(dyn Fn() -> bool + Sync),
     ) -> (Counters, bool) {
         let skipped = AtomicBool::new(false);
@@ -510,24 +514,27 @@ impl Renderer {
         &self,
         sampler: &S,
         range: Range<u32>,
-        sums: &mut [PixelSum],
+        (sums, aov): (&mut [PixelSum], &mut AovSums),
         go: &(dyn Fn() -> bool + Sync),
     ) -> Counters
     where
         S::Path: 'static,
     {
         let tile = tile_pixels(&self.settings, range.len());
+        let aov_tiles = aov.tiles_mut(tile, sums.len());
         self.pool.install(|| {
             sums.par_chunks_mut(tile)
+                .zip(aov_tiles)
                 .enumerate()
                 .filter(|_| go())
-                .map(|(i, sums)| {
+                .map(|(i, (sums, aov))| {
                     let start = (i * tile) as u32;
                     let mut job = TileJob {
                         frame: &self.frame,
                         pixels: start..start + sums.len() as u32,
                         samples: range.clone(),
                         sums,
+                        aov,
                     };
                     self.render_tile(sampler, &mut job)
                 })
@@ -547,7 +554,10 @@ impl Renderer {
                 let worker = rayon::current_thread_index().unwrap_or(0);
                 let mut slot = self.scratch[worker].lock().expect("scratch lock");
                 if !slot.as_ref().is_some_and(|s| s.is::<Scratch<S::Path>>()) {
-                    *slot = Some(Box::new(Scratch::<S::Path>::new(self.settings.batch_size)));
+                    *slot = Some(Box::new(Scratch::<S::Path>::new(
+                        self.settings.batch_size,
+                        self.settings.aovs,
+                    )));
                 }
                 let scratch = slot
                     .as_mut()
@@ -595,6 +605,7 @@ mod tests {
         assert_eq!(h0, hash(&|s| s.threads = 7));
         assert_eq!(h0, hash(&|s| s.batch_size = 3));
         assert_eq!(h0, hash(&|s| s.memory_limit = Some(1 << 30)));
+        assert_eq!(h0, hash(&|s| s.aovs = AovSet::ALL));
         // Settings that do.
         assert_ne!(h0, hash(&|s| s.seed = 1));
         assert_ne!(h0, hash(&|s| s.width += 1));

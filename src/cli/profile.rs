@@ -33,6 +33,8 @@ pub struct Profile {
     pub sampler: Option<String>,
     /// Russian roulette from this depth on.
     pub rr_depth: Option<u32>,
+    /// The AOVs to accumulate (albedo, normal, depth, variance).
+    pub aov: Option<Vec<String>>,
 }
 
 /// The built-in profiles: name and TOML text.

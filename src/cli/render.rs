@@ -1,7 +1,6 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
 use crate::accel::simd::SimdWidth;
-use crate::cli::denoise::write_with_aux;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
@@ -10,11 +9,14 @@ use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
 use crate::fs::{check_writable, same_file, write_atomic};
 use crate::metrics::ImageErrors;
-use crate::output::{check_output_format, check_partial_path, read_image, write_output};
+use crate::output::{
+    aov_path, check_output_format, check_partial_path, read_image, write_image_with_aovs,
+    write_output,
+};
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::run::session::{Interrupt, Session, SessionOptions, Stop};
 use crate::run::shard::{SampleRequest, SampleWork, ShardSpec, parse_samples};
-use crate::scene::{Integrator, SamplerKind, Scene};
+use crate::scene::{Aov, AovSet, Integrator, SamplerKind, Scene};
 use clap::Args;
 use std::io::{IsTerminal, Write};
 use std::ops::Range;
@@ -117,10 +119,20 @@ pub struct RenderArgs {
     /// the partial file of a shard).
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub write_partial: Option<Duration>,
+    /// Auxiliary outputs to accumulate beside the image, a comma list of:
+    /// albedo and normal (at the first non-specular hit, through mirrors
+    /// and glass), depth (the camera ray's mean hit distance; inf where
+    /// nothing was hit), variance (each pixel's sample variance of the
+    /// radiance, per channel). An .exr --out gets them as layers
+    /// (albedo.R/G/B, normal.X/Y/Z, depth.Z, variance.R/G/B); a .png or
+    /// .pfm --out as files beside it (STEM.albedo.pfm, ...); a .wtacc file
+    /// (checkpoints, --partial) holds their exact sums.
+    #[arg(long, value_name = "LIST", value_parser = parse_aovs)]
+    pub aov: Option<AovSet>,
     /// Denoise the final image with Intel Open Image Denoise (OIDN 2.x,
     /// loaded at run time: `pip install pyoidn`, or set OIDN_DIR), guided by
-    /// albedo and normal buffers; --out gets the denoised image (an .exr
-    /// also gets layers albedo and normal).
+    /// the albedo and normal AOVs (implies --aov albedo,normal); --out gets
+    /// the denoised image, with the AOVs.
     #[arg(long)]
     pub denoise: bool,
     /// With --denoise: also write the raw (noisy) image to this file.
@@ -140,6 +152,11 @@ pub(crate) fn named<T: Clone + Send + Sync + 'static>(
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(names)
         .map(move |name: String| from_name(&name).expect("one of the possible values"))
+}
+
+/// A comma list of AOV names.
+fn parse_aovs(text: &str) -> std::result::Result<AovSet, String> {
+    AovSet::parse_list(text)
 }
 
 /// `8` or `16` lanes.
@@ -287,6 +304,17 @@ fn plan(args: RenderArgs) -> Result<Job> {
         .unwrap_or(settings.integrator);
     settings.sampler = args.sampler.or(profile_sampler).unwrap_or(settings.sampler);
     settings.rr_depth = args.rr_depth.or(profile.rr_depth).or(settings.rr_depth);
+    let profile_aovs = match &profile.aov {
+        Some(names) => Some(
+            AovSet::from_names(names.iter().map(String::as_str))
+                .map_err(|e| Error::Settings(format!("profile: aov: {e}")))?,
+        ),
+        None => None,
+    };
+    settings.aovs = args.aov.or(profile_aovs).unwrap_or(settings.aovs);
+    if args.denoise {
+        settings.aovs = settings.aovs.union(AovSet::DENOISE);
+    }
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.simd = args.simd.unwrap_or(settings.simd);
     settings.memory_limit = memory_limit_from_env(&env)?;
@@ -311,9 +339,15 @@ fn plan(args: RenderArgs) -> Result<Job> {
         PathBuf::from(format!("{stem}.png"))
     });
     let out = args.out.or(default_out);
+    // The AOVs' files beside a PNG or PFM --out.
+    let mut aov_files = Vec::new();
     if let Some(out) = &out {
         check_output_format(out)?;
         check_writable(out)?;
+        aov_files.extend(settings.aovs.iter().filter_map(|a| aov_path(out, a)));
+        for file in &aov_files {
+            check_writable(file)?;
+        }
     }
     if let Some(partial) = &partial {
         check_partial_path(partial)?;
@@ -334,7 +368,13 @@ fn plan(args: RenderArgs) -> Result<Job> {
         if let Some(noisy) = &args.keep_noisy {
             check_output_format(noisy)?;
             check_writable(noisy)?;
-            check_distinct(&[("--out", out.as_deref()), ("--keep-noisy", Some(noisy))])?;
+            let mut files = vec![("--out", out.as_deref()), ("--keep-noisy", Some(noisy))];
+            files.extend(
+                aov_files
+                    .iter()
+                    .map(|f| ("an AOV file of --out", Some(f.as_path()))),
+            );
+            check_distinct(&files)?;
         }
         Some(Denoiser::new()?)
     } else {
@@ -376,12 +416,18 @@ fn plan(args: RenderArgs) -> Result<Job> {
         }
         check_writable(path)?;
     }
-    check_distinct(&[
+    let mut files = vec![
         ("--out", out.as_deref()),
         ("--partial", partial.as_deref()),
         ("--stats", args.stats.as_deref()),
         ("the checkpoint", checkpoint.as_deref()),
-    ])?;
+    ];
+    files.extend(
+        aov_files
+            .iter()
+            .map(|f| ("an AOV file of --out", Some(f.as_path()))),
+    );
+    check_distinct(&files)?;
     // The checkpoint to continue is read and checked in full before any
     // work: a missing, truncated, corrupt or foreign one is refused here and
     // left as it is. Its samples must lie within this render's sample range
@@ -593,21 +639,25 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         }
     }
     let mut errors = Vec::new();
-    // --denoise: the AOVs and the denoised image, for the final --out.
+    // --denoise: the denoised image, for the final --out, guided by the
+    // film's albedo and normal AOVs (all its samples).
+    let aov_images = match job.denoiser {
+        Some(_) => film.aov_images(),
+        None => Vec::new(), // written by `write_output`
+    };
+    let aovs: Vec<(Aov, &[[f32; 3]])> = aov_images.iter().map(|(a, p)| (*a, &p[..])).collect();
     let denoised = match (&mut job.denoiser, report.stop) {
         (Some(denoiser), Stop::Complete | Stop::TimeLimit) => {
             let t = Instant::now();
-            let aovs = renderer.aovs(&job.scene);
-            let aov_seconds = t.elapsed().as_secs_f64();
-            let t = Instant::now();
+            let layer = |aov| aovs.iter().find(|(a, _)| *a == aov).map(|(_, p)| *p);
             let aux = Aux {
-                albedo: &aovs.albedo,
-                normal: &aovs.normal,
+                albedo: layer(Aov::Albedo).expect("--denoise accumulates albedo"),
+                normal: layer(Aov::Normal).expect("--denoise accumulates normal"),
             };
             let rgb = denoiser.denoise(film.width, film.height, &film.to_rgb(), Some(aux))?;
             if !quiet {
                 eprintln!(
-                    "denoise: albedo and normal in {aov_seconds:.3} s, denoised in {:.3} s ({})",
+                    "denoise: with albedo and normal, in {:.3} s ({})",
                     t.elapsed().as_secs_f64(),
                     denoiser.library_path().display()
                 );
@@ -615,27 +665,27 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
             if let Some(noisy) = &job.keep_noisy {
                 files.insert(0, (noisy.clone(), true, false));
             }
-            Some((rgb, aovs))
+            Some(rgb)
         }
         _ => None,
     };
     for (path, is_final, is_partial_file) in files {
         let t = Instant::now();
         let is_out = is_final && !is_partial_file && job.out.as_ref() == Some(&path);
+        let size = (film.width, film.height);
         let r = match &denoised {
-            Some((rgb, aovs)) if is_out => {
-                let aux = Aux {
-                    albedo: &aovs.albedo,
-                    normal: &aovs.normal,
+            Some(rgb) if is_out => write_image_with_aovs(&path, size, rgb, &aovs),
+            // --keep-noisy: the AOVs as layers of an EXR (a PNG or PFM gets
+            // none: they are --out's, and their files would collide).
+            Some(_) if is_final && !is_partial_file => {
+                let layers = if crate::output::ImageFormat::from_path(&path)?
+                    == crate::output::ImageFormat::Exr
+                {
+                    &aovs[..]
+                } else {
+                    &[]
                 };
-                write_with_aux(&path, (film.width, film.height), rgb, Some(aux))
-            }
-            Some((_, aovs)) if is_final && !is_partial_file => {
-                let aux = Aux {
-                    albedo: &aovs.albedo,
-                    normal: &aovs.normal,
-                };
-                write_with_aux(&path, (film.width, film.height), &film.to_rgb(), Some(aux))
+                write_image_with_aovs(&path, size, &film.to_rgb(), layers)
             }
             _ => write_output(&path, film, &job.meta),
         };
@@ -702,6 +752,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         integrator: s.integrator.name(),
         sampler: s.sampler.name(),
         rr_depth: s.rr_depth,
+        aov: s.aovs.names(),
         stop: report.stop.name(),
         time_limit_seconds: job.session.time_limit.map(|d| d.as_secs_f64()),
         passes: report.passes,
@@ -758,7 +809,7 @@ fn describe(job: &Job) -> String {
         None => String::new(),
     };
     format!(
-        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine, {}-lane kernels{resume} -> {}",
+        "{} at {}x{}, {} spp{}, max depth {}, {} integrator{}, {} sampler, seed {}, {} thread(s), {} engine, {}-lane kernels{}{resume} -> {}",
         job.scene.name,
         s.width,
         s.height,
@@ -773,6 +824,11 @@ fn describe(job: &Job) -> String {
         s.threads,
         s.engine.name(),
         s.simd.lanes(),
+        if s.aovs.is_empty() {
+            String::new()
+        } else {
+            format!(", AOVs {}", s.aovs)
+        },
         outputs(job)
     )
 }

@@ -54,6 +54,9 @@ pub struct RenderStats {
     pub sampler: &'static str,
     /// The depth from which Russian roulette may end paths, if it may.
     pub rr_depth: Option<u32>,
+    /// The AOVs accumulated (`--aov`, and albedo and normal for
+    /// `--denoise`), in canonical order.
+    pub aov: Vec<&'static str>,
     /// Why the render stopped: "complete", "time-limit", "SIGINT" or
     /// "SIGTERM".
     pub stop: &'static str,

@@ -8,12 +8,18 @@
 //! exact. A sample that is NaN, infinite, negative or too large to represent
 //! (≥ 2³¹) is not added; it is counted in [`Film::invalid_samples`] and
 //! reported, never folded into the image silently.
+//!
+//! A film may also hold the sums of auxiliary outputs (AOVs: albedo,
+//! normal, depth, variance), in the same fixed point ([`aov`]).
 
+pub mod aov;
 pub mod ranges;
 pub mod wtacc;
 
+pub use aov::{AovSample, AovSums, AovTile};
 pub use wtacc::{AccMeta, WtaccError};
 
+use crate::scene::{Aov, AovSet};
 use glam::Vec3;
 use std::ops::Range;
 
@@ -29,16 +35,48 @@ pub type PixelSum = [u128; 3];
 /// invalid sample: NaN, infinite, negative or ≥ [`MAX_SAMPLE`].
 #[inline]
 pub fn accumulate(sum: &mut PixelSum, rgb: Vec3) -> bool {
+    let Some(q) = to_fixed(rgb) else {
+        return false;
+    };
+    for (s, q) in sum.iter_mut().zip(q) {
+        *s += q as u128;
+    }
+    true
+}
+
+/// A radiance sample in fixed point, as [`accumulate`] adds it: `None`
+/// for an invalid sample (NaN, infinite, negative or ≥ [`MAX_SAMPLE`]).
+#[inline(always)]
+pub fn to_fixed(rgb: Vec3) -> Option<[u64; 3]> {
     let c = rgb.to_array();
     // `contains` is false for NaN as well.
     if c.iter().any(|x| !(0.0..MAX_SAMPLE).contains(x)) {
-        return false;
+        return None;
     }
-    for (s, x) in sum.iter_mut().zip(c) {
-        // x < 2^31, so x · 2^32 < 2^63 fits an i64 (one instruction to convert).
-        *s += (x as f64 * FIXED_POINT_SCALE).round() as i64 as u128;
+    // x < 2^31, so x · 2^32 < 2^63 fits an i64 (one instruction to convert).
+    Some(c.map(|x| (x as f64 * FIXED_POINT_SCALE).round() as i64 as u64))
+}
+
+/// Add one sample to a pixel's sums and its AOV sums (`aovs`, the pixel's
+/// index `i` in them): [`accumulate`], and the AOVs present in `aovs`
+/// (the square of the radiance only when it is valid). Returns false for
+/// an invalid radiance sample, whose radiance and square add nothing (its
+/// other AOVs are added: they are valid whatever the radiance).
+#[inline]
+pub fn accumulate_with_aovs(
+    sum: &mut PixelSum,
+    (aovs, i): (&mut AovTile<'_>, usize),
+    rgb: Vec3,
+    aov: &AovSample,
+) -> bool {
+    let q = to_fixed(rgb);
+    if let Some(q) = q {
+        for (s, q) in sum.iter_mut().zip(q) {
+            *s += q as u128;
+        }
     }
-    true
+    aovs.add(i, aov, q);
+    q.is_some()
 }
 
 /// An image being accumulated: sums of the samples of some sample ranges.
@@ -54,18 +92,38 @@ pub struct Film {
     pub ranges: Vec<Range<u32>>,
     /// Samples refused as NaN, infinite, negative or too large.
     pub invalid_samples: u64,
+    /// The sums of the AOVs the film holds (none by default).
+    pub aov: AovSums,
 }
 
 impl Film {
-    /// An empty film.
+    /// An empty film, without AOVs.
     pub fn new(width: u32, height: u32) -> Self {
+        Self::with_aovs(width, height, AovSet::NONE)
+    }
+
+    /// An empty film that also accumulates the AOVs `aovs`.
+    pub fn with_aovs(width: u32, height: u32, aovs: AovSet) -> Self {
+        let pixels = width as usize * height as usize;
         Self {
             width,
             height,
-            sums: vec![[0; 3]; width as usize * height as usize],
+            sums: vec![[0; 3]; pixels],
             ranges: Vec::new(),
             invalid_samples: 0,
+            aov: AovSums::new(aovs, pixels),
         }
+    }
+
+    /// The AOVs this film holds.
+    pub fn aovs(&self) -> AovSet {
+        self.aov.set
+    }
+
+    /// The images of the AOVs this film holds, in canonical order
+    /// ([`Aov::ALL`]; see [`aov`] for what each pixel is).
+    pub fn aov_images(&self) -> Vec<(Aov, Vec<[f32; 3]>)> {
+        self.aov.images(self.samples_per_pixel(), &self.sums)
     }
 
     /// How many samples each pixel holds.
@@ -110,17 +168,23 @@ impl Film {
             .collect()
     }
 
-    /// Add another film's samples to this one: its sums, its sample
-    /// ranges and its invalid-sample count. Exact, like every film sum:
-    /// merging the films of disjoint sample ranges gives the same film, bit
-    /// for bit, as rendering all of them into one. Refuses (changing
-    /// nothing) a film of another size or one holding a sample index this
-    /// film already holds.
+    /// Add another film's samples to this one: its sums (AOVs too), its
+    /// sample ranges and its invalid-sample count. Exact, like every film
+    /// sum: merging the films of disjoint sample ranges gives the same
+    /// film, bit for bit, as rendering all of them into one. Refuses
+    /// (changing nothing) a film of another size, one of other AOVs, or
+    /// one holding a sample index this film already holds.
     pub fn merge(&mut self, other: &Film) -> Result<(), MergeError> {
         if (self.width, self.height) != (other.width, other.height) {
             return Err(MergeError::Size {
                 theirs: (other.width, other.height),
                 ours: (self.width, self.height),
+            });
+        }
+        if self.aovs() != other.aovs() {
+            return Err(MergeError::Aovs {
+                theirs: other.aovs(),
+                ours: self.aovs(),
             });
         }
         if let Some((theirs, ours)) = ranges::first_overlap(&other.ranges, &self.ranges) {
@@ -131,6 +195,7 @@ impl Film {
                 *x += y;
             }
         }
+        self.aov.add(&other.aov);
         let all: Vec<[u32; 2]> = self
             .ranges
             .iter()
@@ -153,6 +218,16 @@ pub enum MergeError {
         theirs: (u32, u32),
         /// The receiving film's width and height.
         ours: (u32, u32),
+    },
+    /// The films hold different AOVs.
+    #[error(
+        "holds AOVs {theirs}, expected {ours} (films of different --aov sets cannot be combined)"
+    )]
+    Aovs {
+        /// The refused film's AOVs.
+        theirs: AovSet,
+        /// The receiving film's AOVs.
+        ours: AovSet,
     },
     /// Both films hold some of the same sample indices.
     #[error("samples {}..{} overlap samples {}..{} already merged", theirs.start, theirs.end, ours.start, ours.end)]
@@ -179,6 +254,51 @@ mod tests {
         assert_eq!(s, [0; 3]);
         assert!(accumulate(&mut s, Vec3::new(0.5, 1.0, 0.0)));
         assert_eq!(s, [1 << 31, 1 << 32, 0]);
+    }
+
+    /// The squares the variance sums are those of the very values the
+    /// radiance sums, rounded once; the AOVs' sums add up like the
+    /// radiance's.
+    #[test]
+    fn aov_sums_add_the_fixed_point_values() {
+        let mut film = Film::with_aovs(2, 1, AovSet::ALL);
+        let mut tiles = film.aov.tiles_mut(1, 2);
+        assert_eq!(tiles.len(), 2);
+        let mut s = [0; 3];
+        let sample = AovSample {
+            albedo: [0.5, 2.0, -1.0],
+            normal: [-1.0, 0.25, 1.5],
+            depth: 3.0,
+        };
+        assert!(accumulate_with_aovs(
+            &mut s,
+            (&mut tiles[1], 0),
+            Vec3::new(3.0, 0.5, 0.0),
+            &sample
+        ));
+        assert!(!accumulate_with_aovs(
+            &mut s,
+            (&mut tiles[1], 0),
+            Vec3::NAN,
+            &AovSample::NONE
+        ));
+        drop(tiles);
+        let q = 1u128 << 32;
+        assert_eq!(s, [3 * q, q / 2, 0]);
+        let a = &film.aov;
+        assert_eq!(a.albedo, [[0; 3], [q / 2, q, 0]], "clamped to [0, 1]");
+        assert_eq!(a.normal, [[0; 3], [-(q as i128), q as i128 / 4, q as i128]]);
+        assert_eq!(
+            a.depth[1],
+            aov::DepthSum {
+                sum: 3 * q,
+                hits: 1
+            }
+        );
+        assert_eq!(a.squares[1], [9 * q, q / 4, 0]);
+        // (2^63 - 1)^2 / 2^32 = 2^94 - 2^32 + 2^-32, rounded: no overflow.
+        assert_eq!(aov::square(u64::MAX >> 1), (1 << 94) - q);
+        assert_eq!(aov::square(3 << 31), 9 << 30); // 1.5^2 = 2.25, exactly
     }
 
     #[test]
@@ -241,6 +361,14 @@ mod tests {
             a.merge(&Film::new(1, 2)),
             Err(MergeError::Size { .. })
         ));
+        let depth = AovSet::of(&[Aov::Depth]);
+        assert_eq!(
+            a.merge(&Film::with_aovs(2, 1, depth)),
+            Err(MergeError::Aovs {
+                theirs: depth,
+                ours: AovSet::NONE
+            })
+        );
         assert_eq!(a, before);
     }
 

@@ -1,13 +1,32 @@
 //! The accumulation file (`.wtacc`): a film's exact sums on disk.
 //!
 //! Checkpoints, shards' partial files and `.wtacc` outputs are all this one
-//! format: an 8-byte magic, the length of a JSON header, the header
-//! ([`AccMeta`] and the film's size, sample ranges and invalid-sample
-//! count), the sums (three little-endian `u128` per pixel, row-major), and
-//! an XXH3-128 checksum of everything before it.
+//! format: an 8-byte magic (`WTACC\0\0` and the version byte), the length
+//! of a JSON header (`u64`, little-endian), the header ([`AccMeta`] and the
+//! film's size, sample ranges and invalid-sample count), the sums (three
+//! little-endian `u128` per pixel, row-major), and an XXH3-128 checksum of
+//! everything before it.
+//!
+//! Two versions are read:
+//!
+//! - **1** (`wavetrace-accumulation/1`): a film without AOVs. Films without
+//!   AOVs are still written as version 1, byte for byte as before AOVs
+//!   existed (so builds that predate them read them too).
+//! - **2** (`wavetrace-accumulation/2`): a film with AOVs. The header also
+//!   has `"aov"`, the list of the AOVs held in canonical order (`["albedo",
+//!   "normal", "depth", "variance"]` or a part of it), and after the
+//!   radiance sums come, for each AOV in that order, its sums for every
+//!   pixel, row-major, little-endian: albedo three `u128`, normal three
+//!   `i128`, depth a `u128` sum and a `u64` hit count, variance three `u128`
+//!   sums of squares (see [`super::aov`]).
+//!
+//! A file of another version (a newer wavetrace's) is refused with a
+//! message that says so.
 
-use super::Film;
+use super::aov::{DepthSum, bytes_per_pixel, most};
+use super::{AovSums, Film};
 use crate::fs::{FileError, write_atomic};
+use crate::scene::{Aov, AovSet};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -32,8 +51,10 @@ impl Film {
     /// [`Film::save`] with the optional facts of [`AccMeta`] (the whole
     /// render's sample count, the shard) in the header as well.
     pub fn save_with_meta(&self, path: &Path, meta: &AccMeta) -> Result<(), FileError> {
+        // Version 1 when there is no AOV: the same bytes as before AOVs.
+        let version = if self.aov.is_empty() { 1 } else { 2 };
         let header = AccHeader {
-            format: ACC_FORMAT.into(),
+            format: format!("{ACC_FORMAT_PREFIX}{version}"),
             width: self.width,
             height: self.height,
             settings_hash: format!("{:032x}", meta.settings_hash),
@@ -41,13 +62,37 @@ impl Film {
             invalid_samples: self.invalid_samples,
             spp: meta.spp,
             shard: meta.shard.map(|(i, n)| [i, n]),
+            aov: (version == 2)
+                .then(|| self.aovs().names().iter().map(|n| n.to_string()).collect()),
         };
         let header = serde_json::to_vec(&header).expect("header serialises");
-        let mut bytes = Vec::with_capacity(16 + header.len() + self.sums.len() * 48 + 16);
-        bytes.extend_from_slice(ACC_MAGIC);
+        let per_pixel = 48 + self.aovs().iter().map(bytes_per_pixel).sum::<usize>();
+        let mut bytes = Vec::with_capacity(16 + header.len() + self.sums.len() * per_pixel + 16);
+        bytes.extend_from_slice(ACC_MAGIC_PREFIX);
+        bytes.push(version);
         bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
         bytes.extend_from_slice(&header);
         for s in &self.sums {
+            for c in s {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        let a = &self.aov;
+        for s in &a.albedo {
+            for c in s {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        for s in &a.normal {
+            for c in s {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        for d in &a.depth {
+            bytes.extend_from_slice(&d.sum.to_le_bytes());
+            bytes.extend_from_slice(&d.hits.to_le_bytes());
+        }
+        for s in &a.squares {
             for c in s {
                 bytes.extend_from_slice(&c.to_le_bytes());
             }
@@ -88,8 +133,17 @@ impl Film {
         let mut bytes = Vec::new();
         file.read_to_end(&mut bytes)
             .map_err(|e| bad(format!("cannot read: {e}")))?;
-        if bytes.len() < ACC_MAGIC.len() + 8 + 16 || &bytes[..8] != ACC_MAGIC {
+        if bytes.len() < ACC_MAGIC_PREFIX.len() + 1 + 8 + 16 || !bytes.starts_with(ACC_MAGIC_PREFIX)
+        {
             return Err(bad("not a wavetrace accumulation file".into()));
+        }
+        // The version is looked at before anything else a newer version
+        // may lay out differently (the checksum included).
+        let version = bytes[ACC_MAGIC_PREFIX.len()];
+        if !(1..=ACC_VERSION).contains(&version) {
+            return Err(bad(format!(
+                "accumulation file version {version}: this build of wavetrace reads versions 1 to {ACC_VERSION} (written by a newer wavetrace? render or merge it with that one)"
+            )));
         }
         let (body, check) = bytes.split_at(bytes.len() - 16);
         let check: [u8; 16] = check.try_into().unwrap_or_default();
@@ -105,12 +159,30 @@ impl Film {
             .ok_or_else(|| bad("truncated header".into()))?;
         let header: AccHeader = serde_json::from_slice(header_bytes)
             .map_err(|e| bad(format!("unreadable header: {e}")))?;
-        if header.format != ACC_FORMAT {
+        let format = format!("{ACC_FORMAT_PREFIX}{version}");
+        if header.format != format {
             return Err(bad(format!(
-                "format {:?}, expected {ACC_FORMAT:?}",
+                "format {:?}, expected {format:?} (the magic's version)",
                 header.format
             )));
         }
+        let aovs = match (version, &header.aov) {
+            (1, None) => AovSet::NONE,
+            (1, Some(_)) => return Err(bad("a version 1 file cannot hold AOVs".into())),
+            (_, None) => return Err(bad(format!("a version {version} file must list its AOVs"))),
+            (_, Some(names)) => {
+                let set = AovSet::from_names(names.iter().map(String::as_str))
+                    .map_err(|e| bad(format!("header: {e}")))?;
+                let canonical = set.names();
+                if set.is_empty() || canonical != *names {
+                    return Err(bad(format!(
+                        "header: AOVs {names:?}: expected a non-empty list in the order {:?}",
+                        Aov::NAMES
+                    )));
+                }
+                set
+            }
+        };
         let hash = u128::from_str_radix(&header.settings_hash, 16)
             .map_err(|_| bad("unreadable settings hash".into()))?;
         if let Some(expected) = expected_hash
@@ -131,16 +203,22 @@ impl Film {
             )));
         }
         let data = &body[16 + header_len..];
+        let per_pixel = 48 + aovs.iter().map(bytes_per_pixel).sum::<usize>() as u64;
         let expected = (header.width as u64)
             .checked_mul(header.height as u64)
-            .and_then(|n| n.checked_mul(48));
+            .and_then(|n| n.checked_mul(per_pixel));
         if expected != Some(data.len() as u64) {
             return Err(bad(format!(
-                "holds {} bytes of sums, expected {} for {}x{}",
+                "holds {} bytes of sums, expected {} for {}x{}{}",
                 data.len(),
                 expected.map_or("more than 2^64".into(), |n| n.to_string()),
                 header.width,
-                header.height
+                header.height,
+                if aovs.is_empty() {
+                    String::new()
+                } else {
+                    format!(" with AOVs {aovs}")
+                }
             )));
         }
         let ranges = super::ranges::sorted_disjoint(&header.ranges)
@@ -149,22 +227,77 @@ impl Film {
         // No sample adds 2^63 or more to a sum (see `accumulate`), so a
         // pixel of `held` samples sums to less than held * 2^63: a larger
         // sum is forged, and refusing it keeps every later addition of
-        // sums (merges, resumed renders) from overflowing.
-        let most = (held as u128) << 63;
-        let mut sums = Vec::with_capacity(data.len() / 48);
-        for (i, p) in data.chunks_exact(48).enumerate() {
-            let sum: super::PixelSum = std::array::from_fn(|c| {
-                u128::from_le_bytes(p[c * 16..c * 16 + 16].try_into().unwrap_or([0; 16]))
-            });
-            if sum.iter().any(|&c| c > most) {
-                let w = header.width as usize;
-                return Err(bad(format!(
-                    "pixel ({}, {}) holds a sum larger than its {held} sample(s) can make",
-                    i % w,
-                    i / w
-                )));
+        // sums (merges, resumed renders) from overflowing. The AOVs' sums
+        // have bounds of their own (`aov::most`).
+        let pixels = header.width as usize * header.height as usize;
+        let w = header.width as usize;
+        let too_large = |what: &str, i: usize| {
+            bad(format!(
+                "pixel ({}, {}) holds {what} larger than its {held} sample(s) can make",
+                i % w,
+                i / w
+            ))
+        };
+        let u128_at =
+            |b: &[u8], at: usize| u128::from_le_bytes(b[at..at + 16].try_into().unwrap_or([0; 16]));
+        let (radiance, mut rest) = data.split_at(pixels * 48);
+        let most_radiance = (held as u128) << 63;
+        let mut sums = Vec::with_capacity(pixels);
+        for (i, p) in radiance.chunks_exact(48).enumerate() {
+            let sum: super::PixelSum = std::array::from_fn(|c| u128_at(p, c * 16));
+            if sum.iter().any(|&c| c > most_radiance) {
+                return Err(too_large("a sum", i));
             }
             sums.push(sum);
+        }
+        let mut aov = AovSums {
+            set: aovs,
+            ..AovSums::default()
+        };
+        for kind in aovs.iter() {
+            let (plane, tail) = rest.split_at(pixels * bytes_per_pixel(kind));
+            rest = tail;
+            let bound = most(kind, held);
+            let article = if kind == Aov::Albedo { "an" } else { "a" };
+            let label = format!("{article} {} sum", kind.name());
+            match kind {
+                Aov::Albedo | Aov::Variance => {
+                    let mut col = Vec::with_capacity(pixels);
+                    for (i, p) in plane.chunks_exact(48).enumerate() {
+                        let s: [u128; 3] = std::array::from_fn(|c| u128_at(p, c * 16));
+                        if s.iter().any(|&c| c > bound) {
+                            return Err(too_large(&label, i));
+                        }
+                        col.push(s);
+                    }
+                    if kind == Aov::Albedo {
+                        aov.albedo = col;
+                    } else {
+                        aov.squares = col;
+                    }
+                }
+                Aov::Normal => {
+                    for (i, p) in plane.chunks_exact(48).enumerate() {
+                        let s: [i128; 3] = std::array::from_fn(|c| u128_at(p, c * 16) as i128);
+                        if s.iter().any(|&c| c.unsigned_abs() > bound) {
+                            return Err(too_large(&label, i));
+                        }
+                        aov.normal.push(s);
+                    }
+                }
+                Aov::Depth => {
+                    for (i, p) in plane.chunks_exact(24).enumerate() {
+                        let d = DepthSum {
+                            sum: u128_at(p, 0),
+                            hits: u64::from_le_bytes(p[16..24].try_into().unwrap_or([0; 8])),
+                        };
+                        if d.hits > held || d.sum > most(kind, d.hits) {
+                            return Err(too_large(&label, i));
+                        }
+                        aov.depth.push(d);
+                    }
+                }
+            }
         }
         let film = Film {
             width: header.width,
@@ -172,6 +305,7 @@ impl Film {
             sums,
             ranges,
             invalid_samples: header.invalid_samples,
+            aov,
         };
         if let Some(spp) = header.spp
             && let Some(last) = film.ranges.last()
@@ -196,8 +330,12 @@ impl Film {
     }
 }
 
-const ACC_MAGIC: &[u8; 8] = b"WTACC\0\0\x01";
-const ACC_FORMAT: &str = "wavetrace-accumulation/1";
+/// The magic's first seven bytes; the eighth is the version.
+const ACC_MAGIC_PREFIX: &[u8; 7] = b"WTACC\0\0";
+/// The newest version this build reads and writes.
+const ACC_VERSION: u8 = 2;
+/// The header's `format` is this and the version.
+const ACC_FORMAT_PREFIX: &str = "wavetrace-accumulation/";
 
 #[derive(serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -215,6 +353,9 @@ struct AccHeader {
     /// Added for shards, like `spp`: `[index, count]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     shard: Option<[u32; 2]>,
+    /// Version 2: the AOVs held, in canonical order (absent in version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    aov: Option<Vec<String>>,
 }
 
 /// What an accumulation file's header says besides the film itself.

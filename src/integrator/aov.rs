@@ -1,83 +1,64 @@
-//! Auxiliary outputs (AOVs) for the denoiser: per pixel, the mean albedo
-//! and shading normal at the first non-specular hit (through mirrors and
-//! glass), over the pixel's first [`aov_samples`] camera samples.
+//! Auxiliary outputs (AOVs): what each one is, per camera sample.
 //!
-//! The camera positions are the render's own (the sampler's first two
-//! dimensions of each `(pixel, sample)`); the delta bounces after them use
-//! the sampler's next numbers. Each pixel sums its samples in index order,
-//! on its own, so the buffers are the same bits whatever the thread count.
-//! They come from the [reference tracer](ReferenceTracer) (scalar), for
-//! either engine's render: both trace the same camera rays.
+//! A render asks for any of them with `--aov albedo,normal,depth,variance`
+//! ([`AovSet`](crate::scene::AovSet); `--denoise` implies albedo and
+//! normal). Each sample of a pixel records them along its own path, and
+//! the film sums them exactly, beside the radiance ([`crate::film::aov`]),
+//! so they are the same bits whatever the threads, batches, passes,
+//! resumes and shards. Both engines record them, each in its own code:
 //!
-//! Not (yet) carried in checkpoints or partial files: they are computed in
-//! one pass at the end of a render.
+//! - the [reference tracer](super::reference) in its recursion, at the
+//!   vertex where the definition says;
+//! - the [wavefront engine](super::wavefront): the path queue has AOV
+//!   columns (when a render asks for AOVs), filled in the *shade* stage
+//!   (`shade::record_aovs`) and added to the film with the radiance in
+//!   *retire*.
+//!
+//! **Definitions.** A path's *vertices* are the surfaces its rays hit, the
+//! camera ray's hit being depth 0, up to the last depth the maximum depth
+//! allows (the hit there is a vertex even though the path scatters no
+//! further).
+//!
+//! - **albedo**: at the path's first *non-specular* vertex (a material
+//!   whose model is not a delta lobe: diffuse or metal; mirrors and glass
+//!   are followed, in the direction the path itself sampled there, as OIDN
+//!   expects), the material's reflectance clamped to [0, 1] ([`albedo`]).
+//!   Lights count as surfaces (their reflectance). A path with no
+//!   non-specular vertex — it escapes first, or reaches the maximum depth
+//!   (or is ended by Russian roulette) while every vertex so far was
+//!   specular — records zero. The image is the mean over *all* the
+//!   pixel's samples (zeros included): in [0, 1].
+//! - **normal**: at that same vertex, the shading normal facing the ray as
+//!   the shading code uses it: the interpolated vertex normal of a smooth
+//!   triangle (else the geometric normal, or a sphere's radius), on the
+//!   side the ray arrived from ([`shading_facing`](super::bsdf::shading_facing)).
+//!   World space; zero where there is no such vertex; the mean is not
+//!   renormalised (its length drops below 1 at edges and where some
+//!   samples saw nothing).
+//! - **depth**: the camera ray's hit distance `t` (world units along the
+//!   unit ray direction, from the camera's origin), whatever the surface.
+//!   The image is the mean over the samples whose camera ray hit something
+//!   (the film keeps a hit count per pixel), and `+inf` where none did.
+//! - **variance**: the per-pixel, per-channel unbiased sample variance of
+//!   the radiance samples, `s² = (Σx² − (Σx)²/n) / (n − 1)` (0 for
+//!   `n < 2`), from exact sums of the samples and of their squares (see
+//!   [`crate::film::aov`]). Samples refused as invalid count as 0, as in
+//!   the image. It is the variance of one sample: the variance of the
+//!   pixel's mean is `s² / n`.
+//!
+//! The camera rays, hits, specular directions and so the albedo, normal
+//! and depth are the same bits in both engines; the variance follows the
+//! radiance, which the engines sum in a different order within a path
+//! (a few ulps apart).
 
-use crate::integrator::reference::ReferenceTracer;
-use crate::integrator::sampler::Sampler;
-use crate::scene::camera::RasterCamera;
+use crate::scene::Material;
 use glam::Vec3;
-use rayon::prelude::*;
 
-/// At most this many camera samples per pixel go into the AOVs.
-pub const MAX_AOV_SAMPLES: u32 = 16;
+pub use crate::film::AovSample;
 
-/// The number of samples per pixel the AOVs of a render of `spp` average:
-/// `min(spp, 16)` (at least 1).
-pub fn aov_samples(spp: u32) -> u32 {
-    spp.clamp(1, MAX_AOV_SAMPLES)
-}
-
-/// Albedo and normal buffers, row-major, row 0 at the top.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Aovs {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Mean albedo (linear, in [0, 1]); black where no surface was seen.
-    pub albedo: Vec<[f32; 3]>,
-    /// Mean facing shading normal (world space; not renormalised, zero
-    /// where no surface was seen).
-    pub normal: Vec<[f32; 3]>,
-}
-
-/// The AOVs of a `width`×`height` image of `camera`, over samples
-/// `0..samples` of every pixel, numbers from `sampler`; rows in parallel
-/// on the current rayon pool.
-pub fn compute<S: Sampler>(
-    tracer: &ReferenceTracer,
-    camera: &RasterCamera,
-    sampler: &S,
-    (width, height): (u32, u32),
-    samples: u32,
-) -> Aovs {
-    let n = width as usize * height as usize;
-    let mut albedo = vec![[0.0f32; 3]; n];
-    let mut normal = vec![[0.0f32; 3]; n];
-    let scale = 1.0 / samples.max(1) as f32;
-    albedo
-        .par_chunks_mut(width as usize)
-        .zip(normal.par_chunks_mut(width as usize))
-        .enumerate()
-        .for_each(|(y, (albedo_row, normal_row))| {
-            for x in 0..width {
-                let (mut a, mut nn) = (Vec3::ZERO, Vec3::ZERO);
-                for sample in 0..samples {
-                    let mut path = sampler.start(camera.pixel_index(x, y as u32), sample);
-                    let ray = camera.pixel_ray(x, y as u32, sampler.next_2d(&mut path));
-                    if let Some((sa, sn)) = tracer.first_surface(sampler, &mut path, ray) {
-                        a += sa;
-                        nn += sn;
-                    }
-                }
-                albedo_row[x as usize] = (a * scale).to_array();
-                normal_row[x as usize] = (nn * scale).to_array();
-            }
-        });
-    Aovs {
-        width,
-        height,
-        albedo,
-        normal,
-    }
+/// The albedo AOV of a non-specular `material`: its reflectance, clamped
+/// to [0, 1] (what OIDN expects of an albedo buffer).
+#[inline]
+pub fn albedo(material: &Material) -> Vec3 {
+    material.reflectance.clamp(Vec3::ZERO, Vec3::ONE)
 }

@@ -6,7 +6,8 @@
 //! - [`reference`](mod@reference): the scalar recursive reference tracer
 //!   (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (the default);
-//! - [`aov`]: albedo and normal buffers for the denoiser.
+//! - [`aov`]: the auxiliary outputs (albedo, normal, depth, variance):
+//!   what each one is, and where the engines record them.
 //!
 //! Both engines render a [`TileJob`] — samples of a run of pixels into
 //! those pixels' sums — and count their work in [`Counters`]. The two differ
@@ -22,7 +23,7 @@ pub mod reference;
 pub mod sampler;
 pub mod wavefront;
 
-use crate::film::PixelSum;
+use crate::film::{AovSample, AovTile, PixelSum, accumulate_with_aovs};
 use crate::scene::camera::RasterCamera;
 use std::ops::Range;
 
@@ -42,7 +43,8 @@ pub struct Frame {
 
 /// One unit of work for a thread: samples `samples` of the pixels
 /// `pixels` (row-major indices), added to `sums` (one per pixel of the
-/// run, `sums[0]` is pixel `pixels.start`).
+/// run, `sums[0]` is pixel `pixels.start`) and, when the render
+/// accumulates AOVs, to `aov` (laid out the same way).
 pub struct TileJob<'a> {
     /// The render's constants.
     pub frame: &'a Frame,
@@ -52,6 +54,8 @@ pub struct TileJob<'a> {
     pub samples: Range<u32>,
     /// The pixels' sums.
     pub sums: &'a mut [PixelSum],
+    /// The pixels' AOV sums (every column empty when the render has none).
+    pub aov: AovTile<'a>,
 }
 
 impl TileJob<'_> {
@@ -59,6 +63,24 @@ impl TileJob<'_> {
     #[inline]
     pub fn sum_of(&mut self, pixel: u32) -> &mut PixelSum {
         &mut self.sums[(pixel - self.pixels.start) as usize]
+    }
+
+    /// Whether the render accumulates AOVs (then every finished sample
+    /// goes through [`add_sample`](Self::add_sample)).
+    #[inline]
+    pub fn has_aovs(&self) -> bool {
+        let a = &self.aov;
+        !(a.albedo.is_empty() && a.normal.is_empty() && a.depth.is_empty() && a.squares.is_empty())
+    }
+
+    /// Add a finished sample of pixel `pixel` (a row-major index within
+    /// the tile): its radiance `rgb` and its AOVs `aov`
+    /// ([`accumulate_with_aovs`]). Returns false for an invalid radiance
+    /// sample.
+    #[inline]
+    pub fn add_sample(&mut self, pixel: u32, rgb: glam::Vec3, aov: &AovSample) -> bool {
+        let i = (pixel - self.pixels.start) as usize;
+        accumulate_with_aovs(&mut self.sums[i], (&mut self.aov, i), rgb, aov)
     }
 
     /// Pixel `pixel`'s column and row.
@@ -75,7 +97,7 @@ pub enum Stage {
     Generate,
     /// Closest hits.
     Intersect,
-    /// Emission seen at the hits.
+    /// Emission seen at the hits (and the AOVs recorded there).
     Shade,
     /// Finished paths added to the film, and dropped from the queue.
     Retire,

@@ -26,7 +26,7 @@
 use crate::accel::bvh::Bvh;
 use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims, hit_normal};
 use crate::accel::triangle::{Hit, TriangleEdges, hit_point};
-use crate::film::accumulate;
+use crate::film::{AovSample, accumulate};
 use crate::integrator::bsdf::{Surface, facing, shading_facing};
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, connect_shaded, emission_weight, survival as survival_of};
@@ -166,12 +166,31 @@ impl ReferenceTracer {
         depth: u32,
         counters: &mut Counters,
     ) -> Vec3 {
-        self.trace(sampler, path, ray, depth, (0.0, Vec3::ONE), counters)
+        self.trace(sampler, path, ray, depth, (0.0, Vec3::ONE), counters, None)
+    }
+
+    /// [`trace_path`](Self::trace_path) of a camera ray (depth 0) that
+    /// also records the sample's AOVs in `aov` ([`super::aov`]): the
+    /// camera ray's hit distance, and the albedo and shading normal of
+    /// the path's first non-specular vertex (left as they are where there
+    /// is none).
+    pub fn trace_camera_path<S: Sampler>(
+        &self,
+        sampler: &S,
+        path: &mut S::Path,
+        ray: (Vec3, Vec3),
+        counters: &mut Counters,
+        aov: &mut AovSample,
+    ) -> Vec3 {
+        self.trace(sampler, path, ray, 0, (0.0, Vec3::ONE), counters, Some(aov))
     }
 
     /// [`trace_path`](Self::trace_path) for a ray drawn with density
     /// `bsdf_pdf` (0 for camera rays), by a path of throughput `beta` so
-    /// far (what Russian roulette looks at).
+    /// far (what Russian roulette looks at). `aov`, while the path has met
+    /// only specular vertices, is where the AOVs of the sample go (`None`
+    /// once recorded, or when not asked for).
+    #[allow(clippy::too_many_arguments)]
     fn trace<S: Sampler>(
         &self,
         sampler: &S,
@@ -180,6 +199,7 @@ impl ReferenceTracer {
         depth: u32,
         (bsdf_pdf, beta): (f32, Vec3),
         counters: &mut Counters,
+        mut aov: Option<&mut AovSample>,
     ) -> Vec3 {
         let est = &self.estimator;
         if depth >= est.max_depth {
@@ -194,6 +214,20 @@ impl ReferenceTracer {
 
         // Seen from the front, the surface emits; either side reflects.
         let (seen_from_front, normal) = facing(V3::from(front), V3::from(d));
+        // AOVs: the camera ray's distance; the first non-specular vertex.
+        if depth == 0
+            && let Some(a) = aov.as_deref_mut()
+        {
+            a.depth = hit.t;
+        }
+        if !material.model.is_delta()
+            && let Some(a) = aov.take()
+        {
+            let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
+            let shading = self.shading_normal(hit, p, front, (seen_from_front, normal), d);
+            a.albedo = super::aov::albedo(material).to_array();
+            a.normal = [shading.x, shading.y, shading.z];
+        }
         let mut radiance = if seen_from_front {
             let cos_light = -front.dot(d);
             let w = emission_weight(
@@ -213,13 +247,7 @@ impl ReferenceTracer {
         }
 
         let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-        // Scattering uses the shading normal (smooth triangles: their
-        // vertex normals interpolated at p); sides stay geometric.
-        let shading = self
-            .scene
-            .shading_normal(hit.triangle as usize, p)
-            .unwrap_or(front);
-        let shading = shading_facing(seen_from_front, normal, V3::from(shading), V3::from(-d));
+        let shading = self.shading_normal(hit, p, front, (seen_from_front, normal), d);
         let surface = self.surface(material);
         let mut beta = beta;
         let mut survival = 1.0;
@@ -261,39 +289,29 @@ impl ReferenceTracer {
             depth + 1,
             (pdf, next_beta),
             counters,
+            aov,
         );
         radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival
     }
 
-    /// The albedo and facing shading normal of the first non-specular
-    /// surface the ray `o + t·d` meets, following mirrors and glass (their
-    /// direction drawn with `sampler`'s next numbers at `path`), within the
-    /// tracer's maximum depth; `None` when the ray leaves the scene first.
-    /// Albedo is the material's reflectance clamped to [0, 1] (what OIDN
-    /// expects of its albedo buffer).
-    pub fn first_surface<S: Sampler>(
+    /// The shading normal to scatter with at the hit `hit` (at `p`, of
+    /// front normal `front`) of a ray of direction `d` that arrived on the
+    /// side `(seen_from_front, normal)` of [`facing`]: smooth triangles'
+    /// vertex normals interpolated at `p` (else `front`), turned towards
+    /// the ray ([`shading_facing`]); sides stay geometric.
+    fn shading_normal(
         &self,
-        sampler: &S,
-        path: &mut S::Path,
-        (mut o, mut d): (Vec3, Vec3),
-    ) -> Option<(Vec3, Vec3)> {
-        for _ in 0..self.estimator.max_depth.max(1) {
-            let hit = self.closest_hit(o, d)?;
-            let (material, front) = self.hit_surface(hit, o, d);
-            let material = &self.scene.materials[material as usize];
-            let (_, normal) = facing(V3::from(front), V3::from(d));
-            if !material.model.is_delta() {
-                let albedo = material.reflectance.clamp(Vec3::ZERO, Vec3::ONE);
-                return Some((albedo, Vec3::from(normal)));
-            }
-            let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-            let u = sampler.next_2d(path);
-            let s = self
-                .surface(material)
-                .sample(V3::from(front), V3::from(d), u, false);
-            (o, d) = (p, Vec3::from(s.wi));
-        }
-        None
+        hit: Hit,
+        p: Vec3,
+        front: Vec3,
+        (seen_from_front, normal): (bool, V3<f32>),
+        d: Vec3,
+    ) -> V3<f32> {
+        let shading = self
+            .scene
+            .shading_normal(hit.triangle as usize, p)
+            .unwrap_or(front);
+        shading_facing(seen_from_front, normal, V3::from(shading), V3::from(-d))
     }
 
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the
@@ -311,15 +329,41 @@ impl ReferenceTracer {
         self.trace_path(sampler, &mut path, ray, 0, counters)
     }
 
-    /// Render a tile: every sample of every pixel, one path at a time.
+    /// [`sample`](Self::sample), with the sample's AOVs
+    /// ([`trace_camera_path`](Self::trace_camera_path)).
+    pub fn sample_with_aovs<S: Sampler>(
+        &self,
+        camera: &RasterCamera,
+        sampler: &S,
+        (x, y): (u32, u32),
+        sample: u32,
+        counters: &mut Counters,
+    ) -> (Vec3, AovSample) {
+        let mut path = sampler.start(camera.pixel_index(x, y), sample);
+        let ray = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
+        let mut aov = AovSample::NONE;
+        let l = self.trace_camera_path(sampler, &mut path, ray, counters, &mut aov);
+        (l, aov)
+    }
+
+    /// Render a tile: every sample of every pixel, one path at a time
+    /// (with its AOVs when the render accumulates them).
     pub fn render_tile<S: Sampler>(&self, sampler: &S, job: &mut TileJob) -> Counters {
         let mut c = Counters::default();
+        let aovs = job.has_aovs();
         for pixel in job.pixels.clone() {
             let xy = job.xy(pixel);
             for sample in job.samples.clone() {
-                let l = self.sample(&job.frame.camera, sampler, xy, sample, &mut c);
+                let camera = &job.frame.camera;
+                let valid = if aovs {
+                    let (l, aov) = self.sample_with_aovs(camera, sampler, xy, sample, &mut c);
+                    job.add_sample(pixel, l, &aov)
+                } else {
+                    let l = self.sample(camera, sampler, xy, sample, &mut c);
+                    accumulate(job.sum_of(pixel), l)
+                };
                 c.paths += 1;
-                if !accumulate(job.sum_of(pixel), l) {
+                if !valid {
                     c.invalid_samples += 1;
                 }
             }

@@ -5,7 +5,7 @@
 //! scene and the settings that change the image. Merging adds the sums up
 //! — integer sums, so the result is the same film, bit for bit, as one run
 //! of the whole sample range — after checking that the parts belong
-//! together and fit: the same hash and size, no sample index twice, and
+//! together and fit: the same hash, size and AOVs, no sample index twice, and
 //! (unless `--allow-partial`) every sample of `0..spp` present. A refused
 //! merge names the file at fault, or the samples and shards that are
 //! missing, and writes nothing.
@@ -106,6 +106,9 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
                 total.merge(&film).map_err(|e| match e {
                     MergeError::Size { .. } => {
                         bad(format!("{e} (the size of {})", first_path.display()))
+                    }
+                    MergeError::Aovs { .. } => {
+                        bad(format!("{e} (those of {})", first_path.display()))
                     }
                     MergeError::Overlap { .. } => bad(e.to_string()),
                 })?;

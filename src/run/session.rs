@@ -483,10 +483,10 @@ pub fn target_range(options: &SessionOptions, settings: &RenderSettings) -> Rang
 }
 
 /// Whether `film` can be continued to the sample range `target` of a render
-/// with `settings`: it has the settings' size and holds no sample outside
-/// `target` (for a whole render, `0..spp`: no sample at or beyond `spp`). A
-/// checkpoint of a shard therefore resumes with that shard's range, or with
-/// any range that contains it. The error says what is wrong.
+/// with `settings`: it has the settings' size and AOVs and holds no sample
+/// outside `target` (for a whole render, `0..spp`: no sample at or beyond
+/// `spp`). A checkpoint of a shard therefore resumes with that shard's
+/// range, or with any range that contains it. The error says what is wrong.
 pub fn check_resumable(
     film: &Film,
     settings: &RenderSettings,
@@ -496,6 +496,19 @@ pub fn check_resumable(
         return Err(format!(
             "made for a {}x{} image, not {}x{}",
             film.width, film.height, settings.width, settings.height
+        ));
+    }
+    if film.aovs() != settings.aovs {
+        return Err(format!(
+            "holds the AOVs {}, but this render asks for {} (--aov, and albedo,normal for --denoise); \
+             a checkpoint's AOVs cannot change: resume it {}",
+            film.aovs(),
+            settings.aovs,
+            if film.aovs().is_empty() {
+                "without --aov or --denoise".to_string()
+            } else {
+                format!("with --aov {}", film.aovs())
+            }
         ));
     }
     let (Some(first), Some(last)) = (film.ranges.first(), film.ranges.last()) else {
@@ -705,6 +718,16 @@ mod tests {
         let e = ok(&[0..80], 0..64).unwrap_err();
         assert!(e.contains("more than --spp 64"), "{e}");
         assert!(check_resumable(&Film::new(3, 2), &settings, &(0..64)).is_err());
+        let depth = crate::scene::AovSet::of(&[crate::scene::Aov::Depth]);
+        let e = check_resumable(&Film::with_aovs(2, 2, depth), &settings, &(0..64)).unwrap_err();
+        assert!(
+            e.contains("holds the AOVs depth, but this render asks for none"),
+            "{e}"
+        );
+        settings.aovs = depth;
+        assert!(check_resumable(&Film::with_aovs(2, 2, depth), &settings, &(0..64)).is_ok());
+        let e = check_resumable(&Film::new(2, 2), &settings, &(0..64)).unwrap_err();
+        assert!(e.contains("resume it without --aov"), "{e}");
     }
 
     #[test]

@@ -3,7 +3,9 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle};
+use super::{
+    AovSet, Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle,
+};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
@@ -186,6 +188,7 @@ struct IntegratorFile {
     name: Option<Spanned<String>>,
     sampler: Option<Spanned<String>>,
     rr_depth: Option<Spanned<u32>>,
+    aov: Option<Spanned<Vec<String>>>,
 }
 
 impl Default for IntegratorFile {
@@ -195,6 +198,7 @@ impl Default for IntegratorFile {
             name: None,
             sampler: None,
             rr_depth: None,
+            aov: None,
         }
     }
 }
@@ -822,10 +826,18 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         "integrator.sampler",
         SamplerKind::NAMES,
     )?;
+    let aov = match &raw.integrator.aov {
+        Some(list) => Some(
+            AovSet::from_names(list.get_ref().iter().map(String::as_str))
+                .map_err(|message| at(list.span(), "integrator.aov", message))?,
+        ),
+        None => None,
+    };
     let options = RenderOptions {
         integrator: integrator.and_then(|n| Integrator::from_name(&n)),
         sampler: sampler.and_then(|n| SamplerKind::from_name(&n)),
         rr_depth: raw.integrator.rr_depth.as_ref().map(|d| *d.get_ref()),
+        aov,
     };
     Ok(Scene {
         name: raw.name.unwrap_or_else(|| {

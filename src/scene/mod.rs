@@ -15,7 +15,7 @@ use glam::Vec3;
 
 pub use file::SceneError;
 pub use material::{Material, Model};
-pub use options::{Integrator, RenderOptions, SamplerKind};
+pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");

@@ -8,7 +8,8 @@ use std::ops::Range;
 /// Fill `queue` with the camera ray of every (pixel, sample) pair of the
 /// batch: pixels `pixels` (row-major indices) times samples `samples`,
 /// pixel-major. Each path starts its numbers; the first two place the ray
-/// in its pixel — exactly as the reference does.
+/// in its pixel — exactly as the reference does. AOV columns, if any,
+/// start empty.
 pub fn generate<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     sampler: &S,
@@ -18,6 +19,9 @@ pub fn generate<S: Sampler>(
 ) {
     let n = pixels.len() * samples.len();
     queue.set_len(n);
+    if let Some(aov) = &mut queue.aov {
+        aov.reset(0..n);
+    }
     let paths = pixels.flat_map(|p| samples.clone().map(move |s| (p, s)));
     for (i, (pixel, sample)) in paths.enumerate() {
         queue.pixel[i] = pixel;

@@ -4,9 +4,11 @@
 //! path queue (one plain column per field), then once per depth:
 //!
 //! 1. *intersect*: the closest hit of every ray (8 triangles at a time);
-//! 2. *shade*: the emission each path sees;
+//! 2. *shade*: the emission each path sees (and, when the render asks for
+//!    AOVs, what they record at the hit: [`crate::integrator::aov`]);
 //! 3. *retire*: paths that escaped, reached the maximum depth or lost at
-//!    Russian roulette go into the film and leave the queue;
+//!    Russian roulette go into the film (with their AOVs) and leave the
+//!    queue;
 //! 4. *sort*: the live paths grouped by the material model they hit (a
 //!    scene of one model skips it);
 //! 5. *light* (next-event estimation only): a point on an emitter for
@@ -41,7 +43,7 @@ use crate::integrator::lights::Lights;
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::{Counters, Stage, TileJob};
-use crate::scene::Scene;
+use crate::scene::{AovSet, Scene};
 use queue::PathQueue;
 use std::ops::Range;
 use std::sync::Arc;
@@ -56,10 +58,11 @@ pub struct Scratch<P> {
 }
 
 impl<P: bytemuck::Pod> Scratch<P> {
-    /// Room for batches of `batch_size` paths.
-    pub fn new(batch_size: usize) -> Self {
+    /// Room for batches of `batch_size` paths, with the queue columns the
+    /// AOVs `aovs` need.
+    pub fn new(batch_size: usize, aovs: AovSet) -> Self {
         Self {
-            queue: PathQueue::with_capacity(batch_size),
+            queue: PathQueue::with_aovs(batch_size, aovs),
             rays: intersect::RayBatch::default(),
             shadows: shadow::ShadowQueue::default(),
         }
@@ -149,7 +152,10 @@ impl WavefrontEngine {
             time.time(Stage::Intersect, || {
                 intersect::intersect(queue, &self.bvh, tables.epsilon, rays)
             });
-            time.time(Stage::Shade, || shade::shade(queue, tables, lights, est));
+            time.time(Stage::Shade, || {
+                shade::shade(queue, tables, lights, est);
+                shade::record_aovs(queue, tables, depth);
+            });
             counters.invalid_samples += time.time(Stage::Retire, || {
                 retire::retire(queue, (sampler, est), depth, last, job)
             });

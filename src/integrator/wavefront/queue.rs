@@ -1,5 +1,7 @@
 //! The path queue: every live path's state, one plain column per field.
 
+use crate::film::AovSample;
+use crate::scene::{Aov, AovSet};
 use wide::f32x8;
 
 /// In [`PathQueue::hit`]: the ray hit nothing.
@@ -41,6 +43,78 @@ pub struct PathQueue<P> {
     /// Triangle hit, or [`NO_HIT`] (intersect stage output), or
     /// [`RETIRED`] (retire stage output).
     pub hit: Vec<u32>,
+    /// The AOV columns, when the render records AOVs along the paths
+    /// (albedo, normal or depth); `None` otherwise, and then they cost
+    /// nothing.
+    pub aov: Option<AovColumns>,
+}
+
+/// The AOVs each path records on its way ([`crate::integrator::aov`]):
+/// set by the *shade* stage ([`super::shade::record_aovs`]), added to the
+/// film by *retire*.
+#[derive(Clone, Debug)]
+pub struct AovColumns {
+    /// Whether albedo or normal are wanted (else only depth is recorded).
+    pub surface: bool,
+    /// 1 while the path has met no non-specular vertex (the albedo and
+    /// normal are still to be recorded), else 0.
+    pub pending: Vec<u8>,
+    /// Albedo at the first non-specular vertex, R, G, B (0 until then).
+    pub albedo: [Vec<f32>; 3],
+    /// Facing shading normal there, x, y, z (0 until then).
+    pub normal: [Vec<f32>; 3],
+    /// The camera ray's hit distance (`+inf` if it hit nothing).
+    pub depth: Vec<f32>,
+}
+
+impl AovColumns {
+    fn with_rows(rows: usize, surface: bool) -> Self {
+        let col = || vec![0.0f32; rows];
+        Self {
+            surface,
+            pending: vec![0; rows],
+            albedo: [col(), col(), col()],
+            normal: [col(), col(), col()],
+            depth: vec![f32::INFINITY; rows],
+        }
+    }
+
+    /// Rows `rows` start new paths: nothing recorded yet.
+    pub fn reset(&mut self, rows: std::ops::Range<usize>) {
+        self.pending[rows.clone()].fill(1);
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col[rows.clone()].fill(0.0);
+        }
+        self.depth[rows].fill(f32::INFINITY);
+    }
+
+    /// Path `i`'s AOVs, for the film.
+    #[inline]
+    pub fn sample(&self, i: usize) -> AovSample {
+        AovSample {
+            albedo: self.albedo.each_ref().map(|c| c[i]),
+            normal: self.normal.each_ref().map(|c| c[i]),
+            depth: self.depth[i],
+        }
+    }
+
+    #[inline]
+    fn move_row(&mut self, from: usize, to: usize) {
+        self.pending[to] = self.pending[from];
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col[to] = col[from];
+        }
+        self.depth[to] = self.depth[from];
+    }
+
+    #[inline]
+    fn swap_rows(&mut self, a: usize, b: usize) {
+        self.pending.swap(a, b);
+        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+            col.swap(a, b);
+        }
+        self.depth.swap(a, b);
+    }
 }
 
 impl<P: bytemuck::Pod> PathQueue<P> {
@@ -62,7 +136,20 @@ impl<P: bytemuck::Pod> PathQueue<P> {
             pdf: col(),
             t: col(),
             hit: vec![NO_HIT; rows],
+            aov: None,
         }
+    }
+
+    /// [`with_capacity`](Self::with_capacity), with AOV columns when
+    /// `aovs` asks for AOVs recorded along the paths (albedo, normal or
+    /// depth; the variance needs none).
+    pub fn with_aovs(n: usize, aovs: AovSet) -> Self {
+        let mut q = Self::with_capacity(n);
+        let surface = aovs.contains(Aov::Albedo) || aovs.contains(Aov::Normal);
+        if surface || aovs.contains(Aov::Depth) {
+            q.aov = Some(AovColumns::with_rows(q.capacity(), surface));
+        }
+        q
     }
 }
 
@@ -116,6 +203,9 @@ impl<P: Copy> PathQueue<P> {
         self.pdf[to] = self.pdf[from];
         self.t[to] = self.t[from];
         self.hit[to] = self.hit[from];
+        if let Some(aov) = &mut self.aov {
+            aov.move_row(from, to);
+        }
     }
 
     /// Exchange paths `a` and `b` (the intersect outputs too).
@@ -131,6 +221,15 @@ impl<P: Copy> PathQueue<P> {
         self.pdf.swap(a, b);
         self.t.swap(a, b);
         self.hit.swap(a, b);
+        if let Some(aov) = &mut self.aov {
+            aov.swap_rows(a, b);
+        }
+    }
+
+    /// Path `i`'s AOVs ([`AovSample::NONE`] without AOV columns).
+    #[inline]
+    pub fn aov_sample(&self, i: usize) -> AovSample {
+        self.aov.as_ref().map_or(AovSample::NONE, |a| a.sample(i))
     }
 
     /// Drop the [`RETIRED`] rows. Each hole is filled with the last live
@@ -216,6 +315,44 @@ mod tests {
             check(n, |i| i % 3 == 0);
             check(n, |i| i < n / 2);
             check(n, |i| i >= n / 2);
+        }
+    }
+
+    /// Compaction and swaps move the AOV columns with their rows.
+    #[test]
+    fn aov_columns_move_with_their_rows() {
+        for n in [1, 7, 9, 64, 100] {
+            let mut q = queue(n, |i| i % 3 == 1);
+            let mut with = PathQueue::<u64>::with_aovs(n, AovSet::ALL);
+            assert!(
+                PathQueue::<u64>::with_aovs(n, AovSet::of(&[Aov::Variance]))
+                    .aov
+                    .is_none()
+            );
+            with.set_len(n);
+            (with.pixel, with.hit) = (q.pixel.clone(), q.hit.clone());
+            let aov = with.aov.as_mut().unwrap();
+            aov.reset(0..n);
+            for i in 0..n {
+                aov.albedo[1][i] = i as f32;
+                aov.normal[2][i] = -(i as f32);
+                aov.depth[i] = 2.0 * i as f32;
+                aov.pending[i] = (i % 2) as u8;
+            }
+            with.swap_rows(0, n - 1);
+            with.swap_rows(0, n - 1);
+            with.compact();
+            q.compact();
+            assert_eq!(with.len(), q.len());
+            for r in 0..with.len() {
+                let i = with.pixel[r] as usize;
+                let a = with.aov_sample(r);
+                assert_eq!(
+                    (a.albedo[1], a.normal[2], a.depth),
+                    (i as f32, -(i as f32), 2.0 * i as f32)
+                );
+                assert_eq!(with.aov.as_ref().unwrap().pending[r], (i % 2) as u8);
+            }
         }
     }
 

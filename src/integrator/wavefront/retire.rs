@@ -10,7 +10,9 @@ use crate::integrator::sampler::Sampler;
 /// ray would exceed the maximum depth), or when Russian roulette ends it
 /// at this vertex (depth `depth`; the survivors' throughput is divided by
 /// their chance of surviving). A finished path's radiance is one sample of
-/// its pixel, added to the tile's sums; finished rows are then dropped
+/// its pixel, added to the tile's sums (with its AOVs, when the render
+/// accumulates them: the queue's AOV columns, and the radiance's square
+/// for the variance); finished rows are then dropped
 /// from the queue ([`PathQueue::compact`]). Returns the number of samples
 /// refused as invalid.
 pub fn retire<S: Sampler>(
@@ -22,6 +24,7 @@ pub fn retire<S: Sampler>(
 ) -> u64 {
     let mut invalid = 0;
     let n = queue.len();
+    let aovs = job.has_aovs();
     for i in 0..n {
         let mut done = last || queue.hit[i] == NO_HIT;
         if !done && let Some(u) = estimator.roulette_number(sampler, &mut queue.sampler[i], depth) {
@@ -37,7 +40,13 @@ pub fn retire<S: Sampler>(
         }
         if done {
             let [r, g, b] = queue.radiance.each_ref().map(|c| c[i]);
-            if !accumulate(job.sum_of(queue.pixel[i]), glam::Vec3::new(r, g, b)) {
+            let rgb = glam::Vec3::new(r, g, b);
+            let valid = if aovs {
+                job.add_sample(queue.pixel[i], rgb, &queue.aov_sample(i))
+            } else {
+                accumulate(job.sum_of(queue.pixel[i]), rgb)
+            };
+            if !valid {
                 invalid += 1;
             }
             queue.hit[i] = RETIRED;

@@ -2,7 +2,8 @@
 
 use super::queue::{NO_HIT, PathQueue};
 use super::tables::Tables;
-use crate::integrator::bsdf::facing;
+use crate::accel::triangle::hit_point;
+use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, emission_weight};
 use crate::math::V3;
@@ -39,5 +40,46 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
             lg[i] += beta[1][i] * (e[1] * w);
             lb[i] += beta[2][i] * (e[2] * w);
         }
+    }
+}
+
+/// Record the AOVs of the hits at depth `depth` in the queue's AOV columns
+/// (nothing without them), as [`crate::integrator::aov`] defines them:
+/// at depth 0 the camera ray's hit distance; at the path's first
+/// non-specular vertex the material's albedo and the facing shading
+/// normal (the one *bounce* scatters with: interpolated vertex normals,
+/// turned towards the ray). Scalar, one path at a time, with the
+/// reference tracer's operations, so the values are its bits.
+pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32) {
+    let n = queue.len();
+    let Some(aov) = queue.aov.as_mut() else {
+        return;
+    };
+    for i in 0..n {
+        let hit = queue.hit[i];
+        if hit == NO_HIT {
+            continue;
+        }
+        if depth == 0 {
+            aov.depth[i] = queue.t[i];
+        }
+        if !aov.surface || aov.pending[i] == 0 || tables.model_of(hit).is_delta() {
+            continue;
+        }
+        aov.pending[i] = 0;
+        let prim = hit as usize;
+        let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
+        let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
+        let t = queue.t[i];
+        let front = tables.front_normal(prim, o, d, t);
+        let (seen_from_front, ng) = facing(front, d);
+        let p = hit_point(o, d, t);
+        let shading = tables.shading_normal(prim, front, p).unwrap_or(front);
+        let ns = shading_facing(seen_from_front, ng, shading, -d);
+        let albedo = tables.albedo[tables.material_of[prim] as usize];
+        for (col, a) in aov.albedo.iter_mut().zip(albedo) {
+            col[i] = a;
+        }
+        (aov.normal[0][i], aov.normal[1][i], aov.normal[2][i]) = (ns.x, ns.y, ns.z);
     }
 }

@@ -31,6 +31,9 @@ pub struct Tables {
     /// Each material's colour as [`Surface::tint`] takes it, per RGB
     /// channel (columns indexed by material).
     pub tint: [Vec<f32>; 3],
+    /// Each material's albedo AOV ([`crate::integrator::aov::albedo`]),
+    /// RGB, indexed by material.
+    pub albedo: Vec<[f32; 3]>,
     /// Each material's GGX roughness (metal).
     pub alpha: Vec<f32>,
     /// Each material's index of refraction (glass).
@@ -67,6 +70,9 @@ impl Tables {
             brdf: [0, 1, 2].map(|c| materials.iter().map(|m| brdf(m)[c]).collect()),
             material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
+            albedo: (scene.materials.iter())
+                .map(|m| crate::integrator::aov::albedo(m).to_array())
+                .collect(),
             alpha: scene.materials.iter().map(|m| m.alpha).collect(),
             ior: scene.materials.iter().map(|m| m.ior).collect(),
             smooth: if scene.vertex_normals.is_empty() {
@@ -129,19 +135,26 @@ impl Tables {
             return front;
         }
         let (f, p) = (lanes3(front), lanes3(p));
-        replace_lanes(front, |l| {
-            let (v, n) = self.smooth.get(prims[l])?;
-            if *n == [glam::Vec3::ZERO; 3] {
-                return None;
-            }
-            let front = glam::Vec3::from(f[l]);
-            Some(V3::from(interpolate_normal(
-                *v,
-                *n,
-                front,
-                glam::Vec3::from(p[l]),
-            )))
-        })
+        replace_lanes(front, |l| self.shading_normal(prims[l], f[l], p[l]))
+    }
+
+    /// The front shading normal of primitive `prim` at its point `p`, for
+    /// one lane: a smooth triangle's vertex normals interpolated by
+    /// [`interpolate_normal`] (as [`Scene::shading_normal`] has it), or
+    /// `None` (the front normal `front` shades).
+    #[inline(always)]
+    pub fn shading_normal(&self, prim: usize, front: V3<f32>, p: V3<f32>) -> Option<V3<f32>> {
+        let (v, n) = self.smooth.get(prim)?;
+        if *n == [glam::Vec3::ZERO; 3] {
+            return None;
+        }
+        let front = glam::Vec3::from(front);
+        Some(V3::from(interpolate_normal(
+            *v,
+            *n,
+            front,
+            glam::Vec3::from(p),
+        )))
     }
 
     /// The model of the material of primitive `tri`.
