@@ -1,17 +1,22 @@
 //! The emitters of a scene, for next-event estimation: an emitter is
-//! chosen in proportion to its power, then a point on it uniformly by area.
+//! chosen in proportion to its power, then a point on it — on a rectangle
+//! uniformly by the solid angle it subtends at the shading point
+//! ([`SphericalRectangle`]), elsewhere uniformly by area.
 //!
 //! Every emissive triangle is an emitter, except that two emissive
 //! triangles of one material that share an edge and together form a
 //! parallelogram (a quad light made of two triangles, as the Cornell box's)
 //! are one emitter: a point on it is the unit square's point mapped
-//! linearly, one emitter to pick instead of two and no warp to a triangle.
-//! Each emissive sphere is an emitter. Its power is proportional to
+//! linearly, one emitter to pick instead of two and no warp to a triangle;
+//! a parallelogram with square corners is a rectangle. Each emissive
+//! sphere is an emitter. Its power is proportional to
 //! `area × mean(emitted radiance)` (a one-sided Lambertian emitter sends
-//! `π · area · L` into its hemisphere). The density of a sampled point, per
-//! unit area, is `P(emitter) / area`; seen from a point `x` at distance `r`,
-//! with the emitter's normal at angle `θ_l` to the direction back to `x`,
-//! it is `P(emitter) / area · r² / cos θ_l` per unit solid angle.
+//! `π · area · L` into its hemisphere). The density of a point sampled by
+//! area, per unit area, is `P(emitter) / area`; seen from a point `x` at
+//! distance `r`, with the emitter's normal at angle `θ_l` to the direction
+//! back to `x`, it is `P(emitter) / area · r² / cos θ_l` per unit solid
+//! angle. A point sampled by solid angle has density `P(emitter) / Ω`,
+//! `Ω` the rectangle's solid angle at `x`.
 
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
