@@ -37,6 +37,8 @@ pub struct Lights {
     emitter_of: Vec<u32>,
     /// Whether some emitters are spheres.
     has_spheres: bool,
+    /// Whether some emitters are rectangles (sampled by solid angle).
+    has_rectangles: bool,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, a
@@ -309,21 +311,32 @@ impl<R: Real> LightPoint<R> {
     /// parallelogram the square mapped linearly.
     #[inline(always)]
     pub fn on(e: &Emitter<R>, o: V3<R>, u: [R; 2]) -> Self {
+        let by_area = Self::on_by_area(e, u);
+        let rect = SphericalRectangle::new(e, o);
+        let solid = rect.used(e);
+        Self {
+            point: V3::select(solid, rect.sample(e, u), by_area.point),
+            pdf_solid_angle: R::select(solid, e.probability / rect.solid_angle, R::splat(0.0)),
+            ..by_area
+        }
+    }
+
+    /// [`LightPoint::on`] where `e` is no rectangle (the same bits, without
+    /// setting up a spherical rectangle): uniform by area.
+    #[inline(always)]
+    pub fn on_by_area(e: &Emitter<R>, u: [R; 2]) -> Self {
         let [t1, t2] = square_to_triangle(u);
         let parallelogram = R::splat(0.0).lt(e.parallelogram);
         let (b1, b2) = (
             R::select(parallelogram, u[0], t1),
             R::select(parallelogram, u[1], t2),
         );
-        let by_area = e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0));
-        let rect = SphericalRectangle::new(e, o);
-        let solid = rect.used(e);
         Self {
-            point: V3::select(solid, rect.sample(e, u), by_area),
+            point: e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)),
             normal: e.normal,
             emission: e.emission,
             pdf_area: e.pdf_area,
-            pdf_solid_angle: R::select(solid, e.probability / rect.solid_angle, R::splat(0.0)),
+            pdf_solid_angle: R::splat(0.0),
         }
     }
 
@@ -332,8 +345,12 @@ impl<R: Real> LightPoint<R> {
     /// a point uniform on its surface by area: `z = 1 - 2 u0`, azimuth
     /// `2π u1`.
     #[inline(always)]
-    pub fn on_any(e: &Emitter<R>, o: V3<R>, u: [R; 2]) -> Self {
-        let t = Self::on(e, o, u);
+    pub fn on_any(e: &Emitter<R>, o: V3<R>, u: [R; 2], rectangles: bool) -> Self {
+        let t = if rectangles {
+            Self::on(e, o, u)
+        } else {
+            Self::on_by_area(e, u)
+        };
         let one = R::splat(1.0);
         let z = R::splat(-2.0).mul_add(u[0], one);
         let r = (-z).mul_add(z, one).max(R::splat(0.0)).sqrt();
@@ -398,6 +415,7 @@ impl Lights {
                     let (l1, l2) = ((p - x).length(), (q - x).length());
                     if (p - x).dot(q - x).abs() <= 1e-6 * l1 * l2 {
                         emitter.rectangle = 1.0;
+                        lights.has_rectangles = true;
                         emitter.axes = [((p - x) / l1).into(), ((q - x) / l2).into()];
                         emitter.lengths = [l1, l2];
                     }
@@ -515,13 +533,14 @@ impl Lights {
 
     /// The point on `emitter` (one lane or eight) for the shading point
     /// `o` and the numbers `u`: [`LightPoint::on`], or
-    /// [`LightPoint::on_any`] where the scene has emissive spheres.
+    /// [`LightPoint::on_any`] where the scene has emissive spheres (the
+    /// spherical rectangle only where the scene has rectangle emitters).
     #[inline(always)]
     pub fn point_on<R: Real>(&self, emitter: &Emitter<R>, o: V3<R>, u: [R; 2]) -> LightPoint<R> {
-        if self.has_spheres {
-            LightPoint::on_any(emitter, o, u)
-        } else {
-            LightPoint::on(emitter, o, u)
+        match (self.has_spheres, self.has_rectangles) {
+            (true, rectangles) => LightPoint::on_any(emitter, o, u, rectangles),
+            (false, true) => LightPoint::on(emitter, o, u),
+            (false, false) => LightPoint::on_by_area(emitter, u),
         }
     }
 
@@ -547,11 +566,15 @@ impl Lights {
             NOT_EMITTER => return 0.0,
             k => &self.emitters[k as usize],
         };
+        let by_area = e.pdf_area * (t * t) / cos_light;
+        if e.rectangle == 0.0 {
+            return by_area;
+        }
         let rect = SphericalRectangle::new(e, o);
         if rect.used(e) {
             e.probability / rect.solid_angle
         } else {
-            e.pdf_area * (t * t) / cos_light
+            by_area
         }
     }
 }
