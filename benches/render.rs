@@ -1,29 +1,54 @@
-//! Whole renders with the report's estimator (max depth 3): rays/s and
-//! paths/s.
+//! Whole renders with the report's estimator (uniform hemisphere,
+//! independent numbers, max depth 3): rays/s and paths/s.
 //!
-//! - `render_cornell_*`: the Cornell box at 64x64, 16 spp, wavefront and
-//!   reference engines, 1 thread and all threads;
-//! - `render_sphere1m`: `scenes/sphere-1m.toml` (the box with a sphere of a
-//!   million triangles) at 64x64, 16 spp, wavefront engine, 1 thread and all
-//!   threads (the hierarchy is built once, outside the timing).
+//! - `render_cornell_rays` / `render_cornell_paths`: the Cornell box at
+//!   64x64, 16 spp, wavefront engine at 8 lanes and (where the CPU has
+//!   AVX-512) 16 lanes, and the reference engine; 1 thread, 2 threads and
+//!   all threads (the thread scaling of the target);
+//! - `render_sphere1m_rays`: `scenes/sphere-1m.toml` (the box with a sphere
+//!   of a million triangles) at 64x64, 16 spp, wavefront engine at each
+//!   width, 1 thread and all threads (the hierarchy is built once, outside
+//!   the timing).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use wavetrace::accel::simd::SimdWidth;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::Scene;
 
+/// The kernel widths this CPU runs.
+fn widths() -> Vec<SimdWidth> {
+    [SimdWidth::W8, SimdWidth::W16]
+        .into_iter()
+        .filter(|w| w.is_available())
+        .collect()
+}
+
+/// 1, 2 and all threads (each once).
+fn thread_counts() -> Vec<usize> {
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut t = vec![1, 2.min(all), all];
+    t.dedup();
+    t
+}
+
 fn render(c: &mut Criterion) {
     let scene = Scene::cornell();
-    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut engines: Vec<(Engine, SimdWidth)> = widths()
+        .into_iter()
+        .map(|w| (Engine::Wavefront, w))
+        .collect();
+    engines.push((Engine::Reference, SimdWidth::W8));
     for (unit, group_name) in [
         ("rays", "render_cornell_rays"),
         ("paths", "render_cornell_paths"),
     ] {
         let mut group = c.benchmark_group(group_name);
         group.sample_size(10);
-        for engine in [Engine::Wavefront, Engine::Reference] {
-            for threads in [1, all] {
-                let mut s = RenderSettings::for_scene(&scene);
-                (s.width, s.height, s.spp, s.threads, s.engine) = (64, 64, 16, threads, engine);
+        for &(engine, simd) in &engines {
+            for threads in thread_counts() {
+                let mut s = RenderSettings::for_scene(&scene).report();
+                (s.width, s.height, s.spp, s.threads) = (64, 64, 16, threads);
+                (s.engine, s.simd) = (engine, simd);
                 let renderer = Renderer::new(&scene, &s).unwrap();
                 // Rays and paths are the same in every run of a seed.
                 let (_, counters, _) = renderer.render();
@@ -33,7 +58,11 @@ fn render(c: &mut Criterion) {
                     counters.paths
                 };
                 group.throughput(Throughput::Elements(n));
-                group.bench_function(format!("{}_{}t", engine.name(), threads), |b| {
+                let lanes = match engine {
+                    Engine::Wavefront => format!("_x{}", simd.lanes()),
+                    Engine::Reference => String::new(),
+                };
+                group.bench_function(format!("{}{lanes}_{threads}t", engine.name()), |b| {
                     b.iter(|| renderer.render())
                 });
             }
@@ -45,15 +74,19 @@ fn render(c: &mut Criterion) {
     let scene = Scene::load(&path).unwrap();
     let mut group = c.benchmark_group("render_sphere1m_rays");
     group.sample_size(10);
-    for threads in [1, all] {
-        let mut s = RenderSettings::for_scene(&scene);
-        (s.width, s.height, s.spp, s.threads, s.max_depth) = (64, 64, 16, threads, 3);
-        let renderer = Renderer::new(&scene, &s).unwrap();
-        let (_, counters, _) = renderer.render();
-        group.throughput(Throughput::Elements(counters.rays));
-        group.bench_function(format!("wavefront_{threads}t"), |b| {
-            b.iter(|| renderer.render())
-        });
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    for simd in widths() {
+        for threads in [1, all] {
+            let mut s = RenderSettings::for_scene(&scene).report();
+            (s.width, s.height, s.spp, s.threads, s.max_depth) = (64, 64, 16, threads, 3);
+            s.simd = simd;
+            let renderer = Renderer::new(&scene, &s).unwrap();
+            let (_, counters, _) = renderer.render();
+            group.throughput(Throughput::Elements(counters.rays));
+            group.bench_function(format!("wavefront_x{}_{threads}t", simd.lanes()), |b| {
+                b.iter(|| renderer.render())
+            });
+        }
     }
     group.finish();
 }

@@ -102,6 +102,11 @@ impl From<&TriangleEdges> for V3Tri<f32> {
     }
 }
 
+/// The primitive index that stands for "nothing hit" in
+/// [`PackHits::closest_below`] and
+/// [`Bvh::closest_hits_into`](crate::accel::bvh::Bvh::closest_hits_into).
+pub const NO_PRIM: u32 = u32::MAX;
+
 /// The closest hit of one ray: primitive index and distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -308,6 +313,17 @@ impl<R: Lanes> PackHits<R> {
             triangle: index as u32,
             t,
         })
+    }
+
+    /// [`PackHits::closest`] below `t_max` as a plain pair, without a
+    /// branch: `(t, index)`, or `(t, NO_PRIM)` where no lane holds a hit
+    /// closer than `t_max` (a lane can hold one at exactly `t_max`: an
+    /// equal `t` with a lower index wins in [`PackHits::keep`]).
+    #[inline(always)]
+    pub fn closest_below(&self, t_max: f32) -> (f32, u32) {
+        let t = self.t.min_lane();
+        let index = self.t.min_index_at(t, self.index);
+        (t, if t < t_max { index as u32 } else { NO_PRIM })
     }
 }
 

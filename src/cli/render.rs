@@ -777,6 +777,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         output,
         triangles: job.scene.triangles.len(),
         bvh_nodes: renderer.bvh().node_count(),
+        bvh_first_packs: renderer.bvh().first_pack_count(),
         build_seconds: renderer.bvh().build_seconds(),
         bvh_bytes: renderer.bvh().bytes(),
         partial: partial_written,

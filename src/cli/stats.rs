@@ -102,6 +102,9 @@ pub struct RenderStats {
     pub triangles: usize,
     /// Inner nodes of the bounding volume hierarchy (0 without one).
     pub bvh_nodes: usize,
+    /// Packs of triangles every ray tests before the hierarchy's walk: a
+    /// small scene's occluders (its two-level split), if it has one.
+    pub bvh_first_packs: usize,
     /// Wall-clock seconds spent building the hierarchy.
     pub build_seconds: f64,
     /// Memory held by the hierarchy's nodes and triangle packs, in bytes.

@@ -52,6 +52,10 @@ pub struct BuildParams {
     pub cost_node: f32,
     /// Relative cost of testing one pack.
     pub cost_pack: f32,
+    /// The root is an inner node even where one leaf would hold every
+    /// primitive, so a walk tests its box (for the tree behind a small
+    /// scene's occluders, whose box culls what they hide).
+    pub root_node: bool,
 }
 
 impl BuildParams {
@@ -62,6 +66,7 @@ impl BuildParams {
             max_leaf_packs: super::MAX_LEAF_PACKS,
             cost_node: 1.0,
             cost_pack: 1.5,
+            root_node: false,
         }
     }
 
@@ -399,7 +404,11 @@ fn build_node(
     depth: u32,
     params: &BuildParams,
 ) -> BuildNode {
-    if depth == 0 && whole.len <= params.max_leaf() && whole.kinds.count_ones() == 1 {
+    if depth == 0
+        && !params.root_node
+        && whole.len <= params.max_leaf()
+        && whole.kinds.count_ones() == 1
+    {
         // A scene that fits in one leaf is one, its prims in index order:
         // testing all its packs beats any node in front of them (measured
         // on the 32-triangle Cornell box: a node's test and the ray's set-up
@@ -437,7 +446,7 @@ fn build_node(
             None => kids[i].leaf = true,
         }
     }
-    if kids.len() == 1 && kids[0].leaf {
+    if kids.len() == 1 && kids[0].leaf && !(depth == 0 && params.root_node) {
         return BuildNode::Leaf {
             start: base,
             len: prims.len(),

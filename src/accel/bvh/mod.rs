@@ -71,6 +71,7 @@
 
 pub mod build;
 mod node;
+mod small;
 mod walk;
 
 pub use build::{BuildParams, BuildPrim, SAH_DEPTH_LIMIT};
@@ -79,7 +80,7 @@ pub use walk::{BATCH, WalkStats};
 
 use crate::accel::simd::{Lanes, SimdWidth};
 use crate::accel::sphere::{Sphere, SpherePack};
-use crate::accel::triangle::{Hit, TriangleEdges, TrianglePack};
+use crate::accel::triangle::{Hit, NO_PRIM, TriangleEdges, TrianglePack};
 use build::{Aabb, Prim};
 use glam::{Vec3, Vec3A};
 use node::{Child, Node8};
@@ -141,8 +142,9 @@ impl LanesIn for F32x16 {
 pub(crate) struct Packs<R: Lanes> {
     /// Triangle packs, leaf after leaf.
     pub triangles: Vec<Pack<TrianglePack<R>>>,
-    /// Triangles with a non-finite coordinate: kept out of the tree (they
-    /// have no box) and tested against every ray, as brute force would.
+    /// Triangles tested against every ray before the walk: those with a
+    /// non-finite coordinate (they have no box), and a small scene's
+    /// occluders (`small`).
     pub unbounded: Vec<Pack<TrianglePack<R>>>,
     /// Sphere packs, leaf after leaf (lanes carry global indices).
     pub spheres: Vec<Pack<SpherePack<R>>>,
@@ -308,11 +310,37 @@ impl Bvh {
         } else {
             SimdWidth::W8
         };
+        let mut bvh = if tris.len() + spheres.len() <= small::MAX_PRIMS {
+            small::build(tris, spheres, width)
+        } else {
+            Self::assemble(
+                tris,
+                spheres,
+                &[],
+                width,
+                &BuildParams::for_lanes(width.lanes()),
+            )
+        };
+        bvh.build_seconds = started.elapsed().as_secs_f64();
+        bvh
+    }
+
+    /// The hierarchy over `tris` and `spheres` at `width`, built with
+    /// `params`, but for the triangles in `first` (indices, increasing):
+    /// those are tested before the walk, by every ray.
+    fn assemble(
+        tris: &[TriangleEdges],
+        spheres: &[Sphere],
+        first: &[u32],
+        width: SimdWidth,
+        params: &BuildParams,
+    ) -> Bvh {
         let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
+        let is_first = |i: usize| first.binary_search(&(i as u32)).is_ok();
         let mut prims: Vec<Prim> = tris
             .par_iter()
             .enumerate()
-            .filter(|(_, t)| finite(t))
+            .filter(|&(i, t)| finite(t) && !is_first(i))
             .map(|(i, t)| {
                 let v0 = Vec3A::from(t.v0);
                 let (v1, v2) = (v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2));
@@ -329,7 +357,7 @@ impl Bvh {
         let unbounded: Vec<(u32, TriangleEdges)> = tris
             .iter()
             .enumerate()
-            .filter(|(_, t)| !finite(t))
+            .filter(|&(i, t)| !finite(t) || is_first(i))
             .map(|(i, t)| (i as u32, *t))
             .collect();
         // Spheres after the triangles, indexed among the spheres (the packs
@@ -352,7 +380,7 @@ impl Bvh {
             .filter(|(_, s)| s.bounds().is_none())
             .map(|(j, s)| (offset + j as u32, *s))
             .collect();
-        let topo = build::build(prims, &BuildParams::for_lanes(width.lanes()));
+        let topo = build::build(prims, params);
         let mut bvh = Bvh {
             nodes: Vec::new(),
             root: topo.root,
@@ -377,7 +405,6 @@ impl Bvh {
         bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
-        bvh.build_seconds = started.elapsed().as_secs_f64();
         bvh
     }
 
@@ -421,7 +448,7 @@ impl Bvh {
     /// [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)).
     #[inline(never)]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
-        self.one::<ClosestKind>(o, d, t_min, t_max)
+        as_hit(self.one::<ClosestKind>(o, d, t_min, t_max))
     }
 
     /// Whether anything lies on the segment `o + t·d`, `t_min < t < t_max`:
@@ -457,14 +484,29 @@ impl Bvh {
 
     /// [`Bvh::closest_hits`] for rays `0..n` given by `ray(i)` (origin,
     /// direction), handing ray `i`'s hit to `out(i, hit)` (in any order).
-    #[inline(never)]
     pub fn closest_hits_with(
         &self,
         n: usize,
         ray: impl Fn(usize) -> (Vec3, Vec3),
         t_min: f32,
         t_max: f32,
-        out: impl FnMut(usize, Option<Hit>),
+        mut out: impl FnMut(usize, Option<Hit>),
+    ) {
+        self.closest_hits_into(n, ray, t_min, t_max, |i, t, prim| out(i, as_hit((t, prim))));
+    }
+
+    /// [`Bvh::closest_hits_with`] with each hit as a plain pair:
+    /// `out(i, t, primitive)`, the primitive [`NO_PRIM`] where ray `i`
+    /// hits nothing (then `t` means nothing). The same hits; no branch per
+    /// ray on whether it hit (for the wavefront's intersect stage).
+    #[inline(never)]
+    pub fn closest_hits_into(
+        &self,
+        n: usize,
+        ray: impl Fn(usize) -> (Vec3, Vec3),
+        t_min: f32,
+        t_max: f32,
+        mut out: impl FnMut(usize, f32, u32),
     ) {
         self.many::<ClosestKind>(
             n,
@@ -474,7 +516,8 @@ impl Bvh {
                 (o, d, t_max)
             },
             t_min,
-            out,
+            #[inline(always)]
+            |i, (t, prim)| out(i, t, prim),
         );
     }
 
@@ -580,10 +623,28 @@ impl Bvh {
         self.nodes.len() * size_of::<Node8>() + self.packs8.bytes() + p16
     }
 
+    /// Packs of triangles every ray tests before the walk: a small
+    /// scene's occluders (the two-level split) and triangles with no box.
+    pub fn first_pack_count(&self) -> usize {
+        match self.width {
+            SimdWidth::W8 => self.packs8.unbounded.len(),
+            #[cfg(target_arch = "x86_64")]
+            SimdWidth::W16 => self.packs16.unbounded.len(),
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => 0,
+        }
+    }
+
     /// Wall-clock seconds [`Bvh::build`] took.
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
     }
+}
+
+/// A closest-hit query's `(t, primitive)` as an optional [`Hit`].
+#[inline(always)]
+fn as_hit((t, prim): (f32, u32)) -> Option<Hit> {
+    (prim != NO_PRIM).then_some(Hit { triangle: prim, t })
 }
 
 /// [`Bvh::one`] at 16 lanes, compiled with AVX-512.

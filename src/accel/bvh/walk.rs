@@ -8,7 +8,9 @@ use super::node::{Child, Node8, NodeRay};
 use super::{Bvh, LanesIn};
 use crate::accel::simd::Lanes;
 use crate::accel::sphere::SpherePack;
-use crate::accel::triangle::{Hit, PackHits, TrianglePack};
+#[cfg(doc)]
+use crate::accel::triangle::NO_PRIM;
+use crate::accel::triangle::{PackHits, TrianglePack};
 use crate::math::V3;
 use glam::Vec3;
 use std::marker::PhantomData;
@@ -145,7 +147,8 @@ pub(crate) struct Closest<R: Lanes> {
 }
 
 impl<R: Lanes> Query<R> for Closest<R> {
-    type Output = Option<Hit>;
+    /// `(t, primitive)`, with [`NO_PRIM`] for no hit.
+    type Output = (f32, u32);
     const ORDERED: bool = true;
     #[inline(always)]
     fn new(t_max: f32) -> Self {
@@ -185,9 +188,8 @@ impl<R: Lanes> Query<R> for Closest<R> {
         false
     }
     #[inline(always)]
-    fn output(&self) -> Option<Hit> {
-        // `filter`: a lane left at t_max by a hit at exactly t_max.
-        self.best.closest().filter(|h| h.t < self.t_max)
+    fn output(&self) -> (f32, u32) {
+        self.best.closest_below(self.t_max)
     }
 }
 
@@ -195,7 +197,7 @@ impl<R: Lanes> Query<R> for Closest<R> {
 pub(crate) struct ClosestKind;
 
 impl QueryKind for ClosestKind {
-    type Output = Option<Hit>;
+    type Output = (f32, u32);
     type Q<R: LanesIn> = Closest<R>;
 }
 
@@ -389,6 +391,20 @@ pub(crate) fn walk_one<R: LanesIn, Q: Query<R>>(
         return q.output();
     }
     let nr = NodeRay::new(o, d, t_min);
+    if bvh.nodes.len() == 1 {
+        // One node, whose children are all leaves: no stack, no order.
+        let node = &bvh.nodes[0];
+        q.node();
+        let (mut mask, _) = node.intersect(&nr, q.cull());
+        while mask != 0 {
+            let lane = mask.trailing_zeros();
+            mask &= mask - 1;
+            if visit_leaf(bvh, &r, &mut q, node.child[lane as usize], false) {
+                break;
+            }
+        }
+        return q.output();
+    }
     let mut stack = Stack::new();
     let mut cur = root;
     let mut group = Group::NONE;

@@ -1,6 +1,6 @@
 //! Stage *intersect*: the closest hit of every ray in the queue.
 
-use super::queue::{NO_HIT, PathQueue};
+use super::queue::PathQueue;
 use crate::accel::bvh::Bvh;
 use glam::Vec3;
 
@@ -20,7 +20,7 @@ pub fn intersect<P>(queue: &mut PathQueue<P>, bvh: &Bvh, epsilon: f32, _batch: &
     let [ox, oy, oz] = queue.o.each_ref().map(|c| &c[..n]);
     let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
     let (t, hit) = (&mut queue.t[..n], &mut queue.hit[..n]);
-    bvh.closest_hits_with(
+    bvh.closest_hits_into(
         n,
         #[inline(always)]
         |i| {
@@ -32,9 +32,6 @@ pub fn intersect<P>(queue: &mut PathQueue<P>, bvh: &Bvh, epsilon: f32, _batch: &
         epsilon,
         f32::INFINITY,
         #[inline(always)]
-        |i, h| match h {
-            Some(h) => (t[i], hit[i]) = (h.t, h.triangle),
-            None => hit[i] = NO_HIT,
-        },
+        |i, ti, prim| (t[i], hit[i]) = (ti, prim),
     );
 }

@@ -5,7 +5,7 @@ use crate::scene::{Aov, AovSet};
 use wide::f32x8;
 
 /// In [`PathQueue::hit`]: the ray hit nothing.
-pub const NO_HIT: u32 = u32::MAX;
+pub const NO_HIT: u32 = crate::accel::triangle::NO_PRIM;
 
 /// In [`PathQueue::hit`]: the path is finished and in the film; the next
 /// [`PathQueue::compact`] drops it.
