@@ -174,6 +174,32 @@ fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usiz
             let want = closest_hit_brute_force(tris, o, d, eps, f32::INFINITY);
             assert_eq!(key(*got), key(want), "batch ray o={o:?} d={d:?}");
         }
+        // Rays as columns (ray packets in a scene of one leaf), with a
+        // short last packet, and a finite t_max.
+        let half = 0.5 * (hi - lo).length();
+        for (len, t_min, t_max) in [
+            (batch.len(), eps, f32::INFINITY),
+            (batch.len().saturating_sub(3), 0.0, half),
+        ] {
+            let col = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| batch[..len].iter().map(f).collect();
+            let o: [Vec<f32>; 3] = [col(&|r| r.0.x), col(&|r| r.0.y), col(&|r| r.0.z)];
+            let d: [Vec<f32>; 3] = [col(&|r| r.1.x), col(&|r| r.1.y), col(&|r| r.1.z)];
+            let (mut t, mut prim) = (vec![0.0; len], vec![0; len]);
+            let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
+            bvh.closest_hits_columns(o, d, (t_min, t_max), &mut t, &mut prim);
+            for (i, &(o, d)) in batch[..len].iter().enumerate() {
+                let want = closest_hit_brute_force(tris, o, d, t_min, t_max);
+                let got = (prim[i] != u32::MAX).then_some(Hit {
+                    triangle: prim[i],
+                    t: t[i],
+                });
+                assert_eq!(
+                    key(got),
+                    key(want),
+                    "column ray {i} of {len}: o={o:?} d={d:?}"
+                );
+            }
+        }
         for t_min in [0.0, eps] {
             let seg: Vec<_> = shadow.iter().filter(|s| s.2 == t_min).collect();
             let rays: Vec<(Vec3, Vec3)> = seg.iter().map(|s| (s.0, s.1)).collect();

@@ -118,6 +118,10 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     fn min_index_at(self, t: f32, index: Self::Index) -> i32;
     /// The lanes, in order (for tests and debugging).
     fn to_vec(self) -> Vec<f32>;
+    /// The first `out.len()` lanes (at most [`Lanes::LANES`]) into `out`.
+    fn write_to(self, out: &mut [f32]);
+    /// The first `out.len()` integer lanes, as `u32`, into `out`.
+    fn index_write_to(i: Self::Index, out: &mut [u32]);
 }
 
 impl Lanes for f32x8 {
@@ -166,6 +170,15 @@ impl Lanes for f32x8 {
     }
     fn to_vec(self) -> Vec<f32> {
         self.to_array().to_vec()
+    }
+    #[inline(always)]
+    fn write_to(self, out: &mut [f32]) {
+        out.copy_from_slice(&self.to_array()[..out.len()]);
+    }
+    #[inline(always)]
+    fn index_write_to(i: i32x8, out: &mut [u32]) {
+        let lanes: [u32; 8] = bytemuck::cast(i);
+        out.copy_from_slice(&lanes[..out.len()]);
     }
 }
 
@@ -369,6 +382,18 @@ mod x16 {
             // SAFETY: `__m512` and `[f32; 16]` are the same 64 bytes; a
             // reinterpretation needs no instruction.
             unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }.to_vec()
+        }
+        #[inline(always)]
+        fn write_to(self, out: &mut [f32]) {
+            // SAFETY: as in `to_vec`.
+            let lanes = unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) };
+            out.copy_from_slice(&lanes[..out.len()]);
+        }
+        #[inline(always)]
+        fn index_write_to(i: I32x16, out: &mut [u32]) {
+            // SAFETY: `__m512i` and `[u32; 16]` are the same 64 bytes.
+            let lanes = unsafe { std::mem::transmute::<__m512i, [u32; 16]>(i.0) };
+            out.copy_from_slice(&lanes[..out.len()]);
         }
     }
 }

@@ -71,6 +71,7 @@
 
 pub mod build;
 mod node;
+mod packet;
 mod small;
 mod walk;
 
@@ -265,6 +266,10 @@ pub struct Bvh {
     /// The tree is one leaf whose packs are in index order, and nothing is
     /// unbounded: a walk tests them all, in order.
     in_order: bool,
+    /// When the tree is one leaf of triangles in index order: all the
+    /// triangles, for [`Bvh::closest_hits_columns`]'s ray packets (empty
+    /// otherwise).
+    packet_tris: Vec<TriangleEdges>,
     triangles: usize,
     spheres: usize,
     build_seconds: f64,
@@ -390,6 +395,7 @@ impl Bvh {
             packs16: Packs::empty(),
             interleave: false,
             in_order: false,
+            packet_tris: Vec::new(),
             triangles: tris.len(),
             spheres: spheres.len(),
             build_seconds: 0.0,
@@ -403,6 +409,9 @@ impl Bvh {
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
         bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
+        if bvh.in_order && topo.root.kind() == PrimKind::Triangle as u32 {
+            bvh.packet_tris = tris.to_vec();
+        }
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
         bvh
@@ -519,6 +528,60 @@ impl Bvh {
             #[inline(always)]
             |i, (t, prim)| out(i, t, prim),
         );
+    }
+
+    /// [`Bvh::closest_hits_into`] for rays given as columns: ray `i` has
+    /// origin `(o[0][i], o[1][i], o[2][i])` and direction likewise from
+    /// `d`; its hit goes to `t[i]` and `prim[i]` ([`NO_PRIM`] where none).
+    /// The same hits, bit for bit.
+    ///
+    /// In a scene of one leaf of triangles (the Cornell box) the rays go
+    /// 8 or 16 at a time, one per lane, each triangle broadcast to every
+    /// lane (`packet`): no per-ray set-up or reduction.
+    ///
+    /// # Panics
+    ///
+    /// If the columns and outputs differ in length.
+    #[inline(never)]
+    pub fn closest_hits_columns(
+        &self,
+        o: [&[f32]; 3],
+        d: [&[f32]; 3],
+        (t_min, t_max): (f32, f32),
+        t: &mut [f32],
+        prim: &mut [u32],
+    ) {
+        let n = t.len();
+        assert!(
+            prim.len() == n && o.iter().chain(&d).all(|c| c.len() == n),
+            "one origin, direction and output per ray"
+        );
+        if self.packet_tris.is_empty() {
+            self.closest_hits_into(
+                n,
+                #[inline(always)]
+                |i| {
+                    (
+                        Vec3::new(o[0][i], o[1][i], o[2][i]),
+                        Vec3::new(d[0][i], d[1][i], d[2][i]),
+                    )
+                },
+                t_min,
+                t_max,
+                #[inline(always)]
+                |i, ti, p| (t[i], prim[i]) = (ti, p),
+            );
+            return;
+        }
+        let tris = &self.packet_tris;
+        match self.width {
+            SimdWidth::W8 => packet::closest_hits::<f32x8>(tris, (o, d), (t_min, t_max), t, prim),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `one`.
+            SimdWidth::W16 => unsafe { packets16(tris, (o, d), (t_min, t_max), t, prim) },
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
+        }
     }
 
     /// [`Bvh::occluded`] for many segments: ray `i` is `rays[i]` up to
@@ -645,6 +708,19 @@ impl Bvh {
 #[inline(always)]
 fn as_hit((t, prim): (f32, u32)) -> Option<Hit> {
     (prim != NO_PRIM).then_some(Hit { triangle: prim, t })
+}
+
+/// [`packet::closest_hits`] at 16 lanes, compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn packets16(
+    tris: &[TriangleEdges],
+    rays: ([&[f32]; 3], [&[f32]; 3]),
+    range: (f32, f32),
+    t: &mut [f32],
+    prim: &mut [u32],
+) {
+    packet::closest_hits::<F32x16>(tris, rays, range, t, prim)
 }
 
 /// [`Bvh::one`] at 16 lanes, compiled with AVX-512.

@@ -2,7 +2,6 @@
 
 use super::queue::PathQueue;
 use crate::accel::bvh::Bvh;
-use glam::Vec3;
 
 /// Working memory of the intersect stage. None is needed today (the
 /// hierarchy reads the queue's columns and writes its hits in place); the
@@ -17,21 +16,8 @@ pub struct RayBatch {
 /// a time, a batch of rays interleaved on scenes larger than the caches.
 pub fn intersect<P>(queue: &mut PathQueue<P>, bvh: &Bvh, epsilon: f32, _batch: &mut RayBatch) {
     let n = queue.len();
-    let [ox, oy, oz] = queue.o.each_ref().map(|c| &c[..n]);
-    let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
+    let o = queue.o.each_ref().map(|c| &c[..n]);
+    let d = queue.d.each_ref().map(|c| &c[..n]);
     let (t, hit) = (&mut queue.t[..n], &mut queue.hit[..n]);
-    bvh.closest_hits_into(
-        n,
-        #[inline(always)]
-        |i| {
-            (
-                Vec3::new(ox[i], oy[i], oz[i]),
-                Vec3::new(dx[i], dy[i], dz[i]),
-            )
-        },
-        epsilon,
-        f32::INFINITY,
-        #[inline(always)]
-        |i, ti, prim| (t[i], hit[i]) = (ti, prim),
-    );
+    bvh.closest_hits_columns(o, d, (epsilon, f32::INFINITY), t, hit);
 }
