@@ -4,6 +4,7 @@ use super::queue::PathQueue;
 use crate::integrator::Frame;
 use crate::integrator::sampler::Sampler;
 use std::ops::Range;
+use wide::f32x8;
 
 /// Fill `queue` with the camera ray of every (pixel, sample) pair of the
 /// batch: pixels `pixels` (row-major indices) times samples `samples`,
@@ -22,22 +23,31 @@ pub fn generate<S: Sampler>(
     if let Some(aov) = &mut queue.aov {
         aov.reset(0..n);
     }
+    queue.start_paths();
     let paths = pixels.flat_map(|p| samples.clone().map(move |s| (p, s)));
-    for (i, (pixel, sample)) in paths.enumerate() {
-        queue.pixel[i] = pixel;
-        queue.sampler[i] = sampler.start(pixel, sample);
+    let (pixel_col, sampler_col) = (&mut queue.pixel[..n], &mut queue.sampler[..n]);
+    for ((p, s), (pixel, sample)) in pixel_col.iter_mut().zip(&mut *sampler_col).zip(paths) {
+        (*p, *s) = (pixel, sampler.start(pixel, sample));
     }
-    // Eight paths' numbers at a time, then their rays.
+    // Eight paths' numbers at a time, then their rays, eight at a time:
+    // the point `(x + u_x, y + u_y)` of each one's pixel.
+    let camera = &frame.camera;
+    let o = camera.position();
     for i in (0..n).step_by(8) {
         let lanes = (n - i).min(8);
-        let [ux, uy] = sampler
-            .next_2d_8(&mut queue.sampler[i..i + lanes])
-            .map(|v| v.to_array());
-        for l in 0..lanes {
-            let pixel = queue.pixel[i + l];
-            let (x, y) = (pixel % frame.width, pixel / frame.width);
-            let (o, d) = frame.camera.pixel_ray(x, y, [ux[l], uy[l]]);
-            queue.set_camera_ray(i + l, o.to_array(), d.to_array());
+        let [ux, uy] = sampler.next_2d_8(&mut sampler_col[i..i + lanes]);
+        let xy = |l: usize| {
+            let pixel = pixel_col[i + l.min(lanes - 1)];
+            [(pixel % frame.width) as f32, (pixel / frame.width) as f32]
+        };
+        let xy: [[f32; 2]; 8] = std::array::from_fn(xy);
+        let (x, y) = (xy.map(|p| p[0]), xy.map(|p| p[1]));
+        let d = camera.directions_8(f32x8::from(x) + ux, f32x8::from(y) + uy);
+        for (col, v) in queue.d.iter_mut().zip([d.x, d.y, d.z]) {
+            col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
+        }
+        for (col, v) in queue.o.iter_mut().zip(o.to_array()) {
+            col[i..i + lanes].fill(v);
         }
     }
 }

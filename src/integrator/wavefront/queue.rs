@@ -177,17 +177,16 @@ impl<P> PathQueue<P> {
 }
 
 impl<P: Copy> PathQueue<P> {
-    /// Row `i` becomes a camera ray `(o, d)`: throughput 1, no radiance
-    /// yet, drawn by no density (the pixel and numbers are set apart).
-    #[inline(always)]
-    pub fn set_camera_ray(&mut self, i: usize, o: [f32; 3], d: [f32; 3]) {
+    /// Every row starts a path: throughput 1, no radiance yet, its ray
+    /// drawn by no density (the pixel, numbers and camera ray are set
+    /// apart).
+    pub fn start_paths(&mut self) {
+        let n = self.len;
         for c in 0..3 {
-            self.o[c][i] = o[c];
-            self.d[c][i] = d[c];
-            self.beta[c][i] = 1.0;
-            self.radiance[c][i] = 0.0;
+            self.beta[c][..n].fill(1.0);
+            self.radiance[c][..n].fill(0.0);
         }
-        self.pdf[i] = 0.0;
+        self.pdf[..n].fill(0.0);
     }
 
     /// Copy path `from` into row `to` (the intersect outputs too).
