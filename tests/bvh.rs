@@ -265,6 +265,16 @@ fn sphere_in_box_100k() {
     tris.extend(geodesic_sphere(Vec3::new(0.1, 0.2, 0.0), 0.5, 100_000));
     let tris = edges(&tris);
     assert!(tris.len() > 100_000);
+    // The box's triangles dwarf the sphere's: they go in front of the tree
+    // (one or two packs, by width), and the hits stay brute force's.
+    for bvh in builds(&tris) {
+        let lanes = bvh.simd_width().lanes();
+        assert_eq!(
+            bvh.first_pack_count(),
+            32usize.div_ceil(lanes),
+            "{lanes} lanes"
+        );
+    }
     check(&tris, 1500, 500, 4);
 }
 

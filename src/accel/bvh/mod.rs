@@ -318,13 +318,14 @@ impl Bvh {
         let mut bvh = if tris.len() + spheres.len() <= small::MAX_PRIMS {
             small::build(tris, spheres, width)
         } else {
-            Self::assemble(
-                tris,
-                spheres,
-                &[],
-                width,
-                &BuildParams::for_lanes(width.lanes()),
-            )
+            // Big scenes: their largest triangles, if they dwarf the rest,
+            // in front of the tree (no candidates built: too slow).
+            let first = small::large_triangles(tris, width.lanes());
+            let params = BuildParams {
+                root_node: !first.is_empty(),
+                ..BuildParams::for_lanes(width.lanes())
+            };
+            Self::assemble(tris, spheres, &first, width, &params)
         };
         bvh.build_seconds = started.elapsed().as_secs_f64();
         bvh

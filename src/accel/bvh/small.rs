@@ -16,6 +16,14 @@
 //!   with one or up to [`MAX_LEAF_PACKS`](super::MAX_LEAF_PACKS) packs per
 //!   leaf.
 //!
+//! Bigger scenes (more than [`MAX_PRIMS`] primitives) are too big to be
+//! built several ways; there the largest triangles go in front of the tree
+//! by a rule ([`large_triangles`]): those whose box is at least
+//! [`LARGE`] of the scene's (by surface area), at most
+//! [`MAX_FIRST_PACKS`] packs of them. In `sphere-1m` those are the box's
+//! 32 triangles, and a ray that misses the sphere then tests them and one
+//! box (measured: the intersect stage 91 → 64 ns a ray at 16 lanes).
+//!
 //! "Cheapest" is counted, not timed, so the choice is the same on every
 //! run: the mean of `nodes · cost_node + packs · cost_pack` over a fixed
 //! set of rays like a path tracer's (from random points on the triangles,
@@ -30,9 +38,17 @@ use crate::accel::triangle::TriangleEdges;
 use glam::Vec3;
 use rand_core::Rng;
 use rand_pcg::Pcg32;
+use rayon::prelude::*;
 
 /// Scenes with at most this many primitives are built the ways above.
 pub const MAX_PRIMS: usize = 256;
+
+/// A big scene's triangle is large, and goes in front of the tree, when
+/// its box has at least this share of the scene box's surface area.
+pub const LARGE: f32 = 0.01;
+
+/// Most packs of large triangles in front of a big scene's tree.
+pub const MAX_FIRST_PACKS: usize = 4;
 
 /// Rays the candidates are counted on.
 const RAYS: usize = 2048;
@@ -94,6 +110,38 @@ fn candidates<'a>(
             Bvh::assemble(tris, spheres, &first, width, &params)
         });
     std::iter::once_with(move || Bvh::assemble(tris, spheres, &[], width, &plain)).chain(split)
+}
+
+/// The large triangles of a big scene (see [`LARGE`]), at most
+/// [`MAX_FIRST_PACKS`] packs of `lanes` of them (the largest), by
+/// increasing index; none when no triangle is that large.
+pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> {
+    let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
+    let bounds = |t: &TriangleEdges| {
+        let (v1, v2) = (t.v0 + t.e1, t.v0 + t.e2);
+        (t.v0.min(v1).min(v2), t.v0.max(v1).max(v2))
+    };
+    let half_area = |(lo, hi): (Vec3, Vec3)| {
+        let e = (hi - lo).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    };
+    let scene = tris.par_iter().filter(|t| finite(t)).map(bounds).reduce(
+        || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+        |a, b| (a.0.min(b.0), a.1.max(b.1)),
+    );
+    let limit = LARGE * half_area(scene);
+    let mut large: Vec<(f32, u32)> = tris
+        .par_iter()
+        .enumerate()
+        .filter(|(_, t)| finite(t))
+        .map(|(i, t)| (half_area(bounds(t)), i as u32))
+        .filter(|&(a, _)| a >= limit && a > 0.0)
+        .collect();
+    large.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    large.truncate(MAX_FIRST_PACKS * lanes);
+    let mut first: Vec<u32> = large.into_iter().map(|(_, i)| i).collect();
+    first.sort_unstable();
+    first
 }
 
 /// The finite triangles, largest first (ties by index).
