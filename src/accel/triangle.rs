@@ -34,6 +34,12 @@ impl TriangleEdges {
 }
 
 impl TriangleEdges {
+    /// Whether every coordinate is finite (a triangle with a box).
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.v0.is_finite() && self.e1.is_finite() && self.e2.is_finite()
+    }
+
     /// The triangle with vertex `v0` and edges `e1 = v1 - v0`,
     /// `e2 = v2 - v0`.
     pub fn from_edges(v0: Vec3, e1: Vec3, e2: Vec3) -> Self {

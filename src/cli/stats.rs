@@ -102,8 +102,9 @@ pub struct RenderStats {
     pub triangles: usize,
     /// Inner nodes of the bounding volume hierarchy (0 without one).
     pub bvh_nodes: usize,
-    /// Packs of triangles every ray tests before the hierarchy's walk: a
-    /// small scene's occluders (its two-level split), if it has one.
+    /// Packs of triangles every ray tests before the hierarchy's walk: the
+    /// scene's largest triangles, where the build put them in front of
+    /// the tree (0 otherwise).
     pub bvh_first_packs: usize,
     /// Wall-clock seconds spent building the hierarchy.
     pub build_seconds: f64,

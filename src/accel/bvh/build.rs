@@ -53,8 +53,8 @@ pub struct BuildParams {
     /// Relative cost of testing one pack.
     pub cost_pack: f32,
     /// The root is an inner node even where one leaf would hold every
-    /// primitive, so a walk tests its box (for the tree behind a small
-    /// scene's occluders, whose box culls what they hide).
+    /// primitive, so a walk tests its box (for a tree behind triangles
+    /// tested first, whose hit culls that box).
     pub root_node: bool,
 }
 

@@ -144,8 +144,8 @@ pub(crate) struct Packs<R: Lanes> {
     /// Triangle packs, leaf after leaf.
     pub triangles: Vec<Pack<TrianglePack<R>>>,
     /// Triangles tested against every ray before the walk: those with a
-    /// non-finite coordinate (they have no box), and a small scene's
-    /// occluders (`small`).
+    /// non-finite coordinate (they have no box), and a scene's occluders
+    /// or large triangles when it has them in front of its tree (`small`).
     pub unbounded: Vec<Pack<TrianglePack<R>>>,
     /// Sphere packs, leaf after leaf (lanes carry global indices).
     pub spheres: Vec<Pack<SpherePack<R>>>,
@@ -341,29 +341,21 @@ impl Bvh {
         width: SimdWidth,
         params: &BuildParams,
     ) -> Bvh {
-        let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
         let is_first = |i: usize| first.binary_search(&(i as u32)).is_ok();
         let mut prims: Vec<Prim> = tris
             .par_iter()
             .enumerate()
-            .filter(|&(i, t)| finite(t) && !is_first(i))
-            .map(|(i, t)| {
-                let v0 = Vec3A::from(t.v0);
-                let (v1, v2) = (v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2));
-                Prim {
-                    b: Aabb {
-                        lo: v0.min(v1).min(v2),
-                        hi: v0.max(v1).max(v2),
-                    },
-                    index: i as u32,
-                    kind: PrimKind::Triangle as u8,
-                }
+            .filter(|&(i, t)| t.is_finite() && !is_first(i))
+            .map(|(i, t)| Prim {
+                b: triangle_box(t),
+                index: i as u32,
+                kind: PrimKind::Triangle as u8,
             })
             .collect();
         let unbounded: Vec<(u32, TriangleEdges)> = tris
             .iter()
             .enumerate()
-            .filter(|&(i, t)| !finite(t) || is_first(i))
+            .filter(|&(i, t)| !t.is_finite() || is_first(i))
             .map(|(i, t)| (i as u32, *t))
             .collect();
         // Spheres after the triangles, indexed among the spheres (the packs
@@ -687,8 +679,9 @@ impl Bvh {
         self.nodes.len() * size_of::<Node8>() + self.packs8.bytes() + p16
     }
 
-    /// Packs of triangles every ray tests before the walk: a small
-    /// scene's occluders (the two-level split) and triangles with no box.
+    /// Packs of triangles every ray tests before the walk: the largest
+    /// triangles, where the build put them in front of the tree (`small`),
+    /// and triangles with no box.
     pub fn first_pack_count(&self) -> usize {
         match self.width {
             SimdWidth::W8 => self.packs8.unbounded.len(),
@@ -702,6 +695,17 @@ impl Bvh {
     /// Wall-clock seconds [`Bvh::build`] took.
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
+    }
+}
+
+/// A triangle's box (finite for a finite triangle).
+#[inline]
+fn triangle_box(t: &TriangleEdges) -> Aabb {
+    let v0 = Vec3A::from(t.v0);
+    let (v1, v2) = (v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2));
+    Aabb {
+        lo: v0.min(v1).min(v2),
+        hi: v0.max(v1).max(v2),
     }
 }
 

@@ -31,7 +31,8 @@
 //! exactly (the occluders are one more set of packs whose hits join the
 //! lanes' `(t, index)` minimum), so the choice never changes an image.
 
-use super::{BuildParams, Bvh};
+use super::build::Aabb;
+use super::{BuildParams, Bvh, triangle_box};
 use crate::accel::simd::SimdWidth;
 use crate::accel::sphere::Sphere;
 use crate::accel::triangle::TriangleEdges;
@@ -116,25 +117,23 @@ fn candidates<'a>(
 /// [`MAX_FIRST_PACKS`] packs of `lanes` of them (the largest), by
 /// increasing index; none when no triangle is that large.
 pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> {
-    let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
-    let bounds = |t: &TriangleEdges| {
-        let (v1, v2) = (t.v0 + t.e1, t.v0 + t.e2);
-        (t.v0.min(v1).min(v2), t.v0.max(v1).max(v2))
-    };
-    let half_area = |(lo, hi): (Vec3, Vec3)| {
-        let e = (hi - lo).max(Vec3::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
-    };
-    let scene = tris.par_iter().filter(|t| finite(t)).map(bounds).reduce(
-        || (Vec3::INFINITY, Vec3::NEG_INFINITY),
-        |a, b| (a.0.min(b.0), a.1.max(b.1)),
-    );
-    let limit = LARGE * half_area(scene);
+    let scene = tris
+        .par_iter()
+        .filter(|t| t.is_finite())
+        .map(triangle_box)
+        .reduce(
+            || Aabb::EMPTY,
+            |mut a, b| {
+                a.grow(&b);
+                a
+            },
+        );
+    let limit = LARGE * scene.half_area();
     let mut large: Vec<(f32, u32)> = tris
         .par_iter()
         .enumerate()
-        .filter(|(_, t)| finite(t))
-        .map(|(i, t)| (half_area(bounds(t)), i as u32))
+        .filter(|(_, t)| t.is_finite())
+        .map(|(i, t)| (triangle_box(t).half_area(), i as u32))
         .filter(|&(a, _)| a >= limit && a > 0.0)
         .collect();
     large.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
@@ -146,9 +145,8 @@ pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> 
 
 /// The finite triangles, largest first (ties by index).
 fn by_area(tris: &[TriangleEdges]) -> Vec<u32> {
-    let finite = |t: &TriangleEdges| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite();
     let mut order: Vec<u32> = (0..tris.len() as u32)
-        .filter(|&i| finite(&tris[i as usize]))
+        .filter(|&i| tris[i as usize].is_finite())
         .collect();
     order.sort_by(|&a, &b| {
         let area = |i: u32| tris[i as usize].n.length();
@@ -175,7 +173,7 @@ fn cost(bvh: &Bvh, rays: &[(Vec3, Vec3, f32)]) -> f64 {
 fn sample_rays(tris: &[TriangleEdges]) -> Vec<(Vec3, Vec3, f32)> {
     let finite: Vec<&TriangleEdges> = tris
         .iter()
-        .filter(|t| t.v0.is_finite() && t.e1.is_finite() && t.e2.is_finite() && t.n.length() > 0.0)
+        .filter(|t| t.is_finite() && t.n.length() > 0.0)
         .collect();
     let mut cdf = Vec::with_capacity(finite.len());
     let mut total = 0.0f64;

@@ -2,13 +2,13 @@
 //! each one's next direction and update its throughput, eight paths at a
 //! time, with the model's scattering routine.
 
-use super::queue::{PathQueue, load8, store8};
+use super::queue::{PathQueue, load8, store_lanes, store3};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
-use crate::math::{V3, Vec3x8};
+use crate::math::V3;
 use crate::scene::{Integrator, Model};
 use std::ops::Range;
 use wide::f32x8;
@@ -78,26 +78,6 @@ pub fn scatter<S: Sampler>(
         store3(&mut queue.d, i, s.wi, lanes);
         store3(&mut queue.beta, i, beta, lanes);
         store_lanes(&mut queue.pdf, i, pdf, lanes);
-    }
-}
-
-/// Store the first `lanes` of eight 3-vectors in rows `i..i + lanes` of
-/// three columns.
-#[inline(always)]
-fn store3(cols: &mut [Vec<f32>; 3], i: usize, v: Vec3x8, lanes: usize) {
-    store_lanes(&mut cols[0], i, v.x, lanes);
-    store_lanes(&mut cols[1], i, v.y, lanes);
-    store_lanes(&mut cols[2], i, v.z, lanes);
-}
-
-/// Store the first `lanes` of `v` in rows `i..i + lanes` (all eight at
-/// once when they are all live: the common case).
-#[inline(always)]
-fn store_lanes(col: &mut [f32], i: usize, v: f32x8, lanes: usize) {
-    if lanes == 8 {
-        store8(col, i, v);
-    } else {
-        col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
     }
 }
 

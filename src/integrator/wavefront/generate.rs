@@ -1,6 +1,6 @@
 //! Stage *generate*: camera rays for a batch of (pixel, sample) pairs.
 
-use super::queue::PathQueue;
+use super::queue::{PathQueue, store3};
 use crate::integrator::Frame;
 use crate::integrator::sampler::Sampler;
 use std::ops::Range;
@@ -43,9 +43,7 @@ pub fn generate<S: Sampler>(
         let xy: [[f32; 2]; 8] = std::array::from_fn(xy);
         let (x, y) = (xy.map(|p| p[0]), xy.map(|p| p[1]));
         let d = camera.directions_8(f32x8::from(x) + ux, f32x8::from(y) + uy);
-        for (col, v) in queue.d.iter_mut().zip([d.x, d.y, d.z]) {
-            col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
-        }
+        store3(&mut queue.d, i, d, lanes);
         for (col, v) in queue.o.iter_mut().zip(o.to_array()) {
             col[i..i + lanes].fill(v);
         }

@@ -1,6 +1,7 @@
 //! The path queue: every live path's state, one plain column per field.
 
 use crate::film::AovSample;
+use crate::math::Vec3x8;
 use crate::scene::{Aov, AovSet};
 use wide::f32x8;
 
@@ -266,6 +267,26 @@ pub fn load8(col: &[f32], i: usize) -> f32x8 {
 #[inline(always)]
 pub fn store8(col: &mut [f32], i: usize, v: f32x8) {
     col[i..i + 8].copy_from_slice(&v.to_array());
+}
+
+/// Store the first `lanes` of eight 3-vectors in rows `i..i + lanes` of
+/// three columns.
+#[inline(always)]
+pub fn store3(cols: &mut [Vec<f32>; 3], i: usize, v: Vec3x8, lanes: usize) {
+    store_lanes(&mut cols[0], i, v.x, lanes);
+    store_lanes(&mut cols[1], i, v.y, lanes);
+    store_lanes(&mut cols[2], i, v.z, lanes);
+}
+
+/// Store the first `lanes` of `v` in rows `i..i + lanes` (all eight at
+/// once when they are all live: the common case).
+#[inline(always)]
+pub fn store_lanes(col: &mut [f32], i: usize, v: f32x8, lanes: usize) {
+    if lanes == 8 {
+        store8(col, i, v);
+    } else {
+        col[i..i + lanes].copy_from_slice(&v.to_array()[..lanes]);
+    }
 }
 
 #[cfg(test)]

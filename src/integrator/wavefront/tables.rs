@@ -215,6 +215,7 @@ fn replace_lanes(v: Vec3x8, mut new: impl FnMut(usize) -> Option<V3<f32>>) -> Ve
     }
     V3::new(f32x8::from(x), f32x8::from(y), f32x8::from(z))
 }
+
 /// `value(index)` for eight indices, as lanes. Written out lane by lane
 /// so the lanes are built in registers: an array `map` here compiled to a
 /// call that stored the eight values to memory, and the vector load then
