@@ -111,6 +111,23 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     fn index_select(m: Self::Mask, a: Self::Index, b: Self::Index) -> Self::Index;
     /// Whether any lane of `m` is set.
     fn any(m: Self::Mask) -> bool;
+    /// The lanes of `m` as bits (lane `l` is bit `l`).
+    fn bits(m: Self::Mask) -> u32;
+    /// `first + l` for each bit `l` set in `bits`, in increasing order,
+    /// into the start of `out`; returns how many. May write up to
+    /// [`Lanes::LANES`] values (`out` must have room for them).
+    #[inline(always)]
+    fn compress(bits: u32, first: u32, out: &mut [u32]) -> usize {
+        let out = &mut out[..Self::LANES];
+        let mut n = 0;
+        // Every lane's value is written; the count moves past the ones
+        // that are set (no branch).
+        for l in 0..Self::LANES {
+            out[n.min(Self::LANES - 1)] = first + l as u32;
+            n += ((bits >> l) & 1) as usize;
+        }
+        n
+    }
     /// The smallest lane (no lane may be NaN).
     fn min_lane(self) -> f32;
     /// The smallest index among the lanes whose value is `t`
@@ -154,6 +171,10 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn any(m: f32x8) -> bool {
         m.any()
+    }
+    #[inline(always)]
+    fn bits(m: f32x8) -> u32 {
+        m.to_bitmask()
     }
     #[inline(always)]
     fn min_lane(self) -> f32 {
@@ -222,7 +243,8 @@ mod x16 {
     // AVX-512F/DQ ones, and this code only runs on a CPU that has them (see
     // the module's documentation). None of the intrinsics touches memory
     // through a pointer except `_mm512_loadu_*`, whose pointers come from
-    // arrays of exactly 16 lanes.
+    // arrays of exactly 16 lanes, and `_mm512_storeu_si512` in `compress`,
+    // whose pointer comes from a slice of exactly 16 lanes.
 
     impl BitAnd for Mask16 {
         type Output = Self;
@@ -362,6 +384,27 @@ mod x16 {
         #[inline(always)]
         fn any(m: Mask16) -> bool {
             m.0 != 0
+        }
+        #[inline(always)]
+        fn bits(m: Mask16) -> u32 {
+            m.0 as u32
+        }
+        #[inline(always)]
+        fn compress(bits: u32, first: u32, out: &mut [u32]) -> usize {
+            let out = &mut out[..16];
+            // SAFETY: see the module's documentation; the store writes the
+            // 64 bytes of `out`, 16 lanes long.
+            unsafe {
+                let lanes = _mm512_add_epi32(
+                    _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                    _mm512_set1_epi32(first as i32),
+                );
+                // The set lanes packed low in a register, then stored
+                // whole (a compressing store to memory is slow on Zen 4).
+                let packed = _mm512_maskz_compress_epi32(bits as u16, lanes);
+                _mm512_storeu_si512(out.as_mut_ptr().cast(), packed);
+            }
+            bits.count_ones() as usize
         }
         #[inline(always)]
         fn min_lane(self) -> f32 {

@@ -778,6 +778,8 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         triangles: job.scene.triangles.len(),
         bvh_nodes: renderer.bvh().node_count(),
         bvh_first_packs: renderer.bvh().first_pack_count(),
+        packet_first_triangles: renderer.bvh().packet_plan().map(|p| p.0),
+        packet_groups: renderer.bvh().packet_plan().map(|p| p.1),
         build_seconds: renderer.bvh().build_seconds(),
         bvh_bytes: renderer.bvh().bytes(),
         partial: partial_written,

@@ -106,6 +106,14 @@ pub struct RenderStats {
     /// scene's largest triangles, where the build put them in front of
     /// the tree (0 otherwise).
     pub bvh_first_packs: usize,
+    /// Where the wavefront's rays are tested in packets against a small
+    /// scene's triangles: how many triangles every ray tests (null where
+    /// the rays walk the tree).
+    pub packet_first_triangles: Option<usize>,
+    /// The groups of triangles behind boxes that the packets test after
+    /// those, each only for the rays that enter its box (null where the
+    /// rays walk the tree).
+    pub packet_groups: Option<usize>,
     /// Wall-clock seconds spent building the hierarchy.
     pub build_seconds: f64,
     /// Memory held by the hierarchy's nodes and triangle packs, in bytes.

@@ -266,10 +266,9 @@ pub struct Bvh {
     /// The tree is one leaf whose packs are in index order, and nothing is
     /// unbounded: a walk tests them all, in order.
     in_order: bool,
-    /// When the tree is one leaf of triangles in index order: all the
-    /// triangles, for [`Bvh::closest_hits_columns`]'s ray packets (empty
-    /// otherwise).
-    packet_tris: Vec<TriangleEdges>,
+    /// How [`Bvh::closest_hits_columns`] tests a small scene of triangles
+    /// in ray packets (see `packet`); empty where it walks the tree.
+    packets: packet::Plan,
     triangles: usize,
     spheres: usize,
     build_seconds: f64,
@@ -388,7 +387,7 @@ impl Bvh {
             packs16: Packs::empty(),
             interleave: false,
             in_order: false,
-            packet_tris: Vec::new(),
+            packets: packet::Plan::default(),
             triangles: tris.len(),
             spheres: spheres.len(),
             build_seconds: 0.0,
@@ -402,8 +401,9 @@ impl Bvh {
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
         bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
-        if bvh.in_order && topo.root.kind() == PrimKind::Triangle as u32 {
-            bvh.packet_tris = tris.to_vec();
+        if bvh.is_one_leaf_in_order() {
+            let all: Vec<u32> = (0..tris.len() as u32).collect();
+            bvh.packets = packet::Plan::new(tris, &all, &[]);
         }
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
@@ -549,7 +549,7 @@ impl Bvh {
             prim.len() == n && o.iter().chain(&d).all(|c| c.len() == n),
             "one origin, direction and output per ray"
         );
-        if self.packet_tris.is_empty() {
+        if self.packets.is_empty() {
             self.closest_hits_into(
                 n,
                 #[inline(always)]
@@ -566,12 +566,12 @@ impl Bvh {
             );
             return;
         }
-        let tris = &self.packet_tris;
+        let plan = &self.packets;
         match self.width {
-            SimdWidth::W8 => packet::closest_hits::<f32x8>(tris, (o, d), (t_min, t_max), t, prim),
+            SimdWidth::W8 => packet::closest_hits::<f32x8>(plan, (o, d), (t_min, t_max), t, prim),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `one`.
-            SimdWidth::W16 => unsafe { packets16(tris, (o, d), (t_min, t_max), t, prim) },
+            SimdWidth::W16 => unsafe { packets16(plan, (o, d), (t_min, t_max), t, prim) },
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
@@ -696,6 +696,24 @@ impl Bvh {
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
     }
+
+    /// Where [`Bvh::closest_hits_columns`] tests ray packets (a small
+    /// scene of triangles): how many triangles every ray tests, and how
+    /// many groups behind boxes follow. `None` where it walks the tree.
+    pub fn packet_plan(&self) -> Option<(usize, usize)> {
+        (!self.packets.is_empty()).then(|| (self.packets.first_count(), self.packets.group_count()))
+    }
+
+    /// The tree is one leaf of triangles in index order, each tested by
+    /// every ray.
+    fn is_one_leaf_in_order(&self) -> bool {
+        self.in_order && self.root.kind() == PrimKind::Triangle as u32
+    }
+
+    /// Test ray packets by `plan` in [`Bvh::closest_hits_columns`].
+    fn set_packet_plan(&mut self, plan: packet::Plan) {
+        self.packets = plan;
+    }
 }
 
 /// A triangle's box (finite for a finite triangle).
@@ -719,13 +737,13 @@ fn as_hit((t, prim): (f32, u32)) -> Option<Hit> {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
 fn packets16(
-    tris: &[TriangleEdges],
+    plan: &packet::Plan,
     rays: ([&[f32]; 3], [&[f32]; 3]),
     range: (f32, f32),
     t: &mut [f32],
     prim: &mut [u32],
 ) {
-    packet::closest_hits::<F32x16>(tris, rays, range, t, prim)
+    packet::closest_hits::<F32x16>(plan, rays, range, t, prim)
 }
 
 /// [`Bvh::one`] at 16 lanes, compiled with AVX-512.

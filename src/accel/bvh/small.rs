@@ -32,10 +32,11 @@
 //! lanes' `(t, index)` minimum), so the choice never changes an image.
 
 use super::build::Aabb;
+use super::packet::{MAX_GROUPS, Plan};
 use super::{BuildParams, Bvh, triangle_box};
 use crate::accel::simd::SimdWidth;
 use crate::accel::sphere::Sphere;
-use crate::accel::triangle::TriangleEdges;
+use crate::accel::triangle::{TriangleEdges, V3Tri, moller_trumbore};
 use glam::Vec3;
 use rand_core::Rng;
 use rand_pcg::Pcg32;
@@ -65,7 +66,33 @@ const COST_NODE: f64 = 2.7;
 /// Relative cost of one pack's tests.
 const COST_PACK: f64 = 1.0;
 
-/// The cheapest of the candidate builds of a small scene.
+/// Relative cost, in a packet plan, of one triangle for one ray (see
+/// `packet`), measured against [`COST_PACK`] in [`walk_pack`].
+const PACKET_TRI: f64 = 1.0;
+/// Relative cost, in a packet plan, of one group's box for one ray.
+const PACKET_BOX: f64 = 0.6;
+/// Relative cost, in a packet plan, of a ray gathered into a group's
+/// packets and its hit scattered back.
+const PACKET_GATHER: f64 = 4.0;
+/// Most triangles in a packet plan's group, the sizes tried.
+const GROUP_SIZES: [usize; 3] = [8, 16, 32];
+/// How many first triangles (the largest) a packet plan tries, besides
+/// all of them.
+const FIRST_COUNTS: [usize; 12] = [0, 2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128];
+
+/// One pack of the walk ([`COST_PACK`]) in units of [`PACKET_TRI`]:
+/// measured in the Cornell box, one ray against one pack of the walk
+/// costs what this many triangles do in packets.
+fn walk_pack(width: SimdWidth) -> f64 {
+    match width {
+        SimdWidth::W8 => 10.0,
+        SimdWidth::W16 => 14.0,
+    }
+}
+
+/// The cheapest of the candidate builds of a small scene, with the
+/// cheapest packet plan when the scene is all finite triangles and that
+/// plan costs less than the walk (the wavefront's batches then take it).
 pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth) -> Bvh {
     let rays = sample_rays(tris);
     let mut best: Option<(Bvh, f64)> = None;
@@ -80,7 +107,17 @@ pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth
             best = Some((bvh, c));
         }
     }
-    best.expect("the plain build is a candidate").0
+    let (mut bvh, walk) = best.expect("the plain build is a candidate");
+    if spheres.is_empty() && tris.iter().all(TriangleEdges::is_finite) {
+        let (plan, packets) = packet_plan(tris, &rays);
+        // A scene of one leaf in index order has its plan already (all
+        // first); a better one replaces it. A tree keeps its walk unless
+        // the packets cost less.
+        if packets * PACKET_TRI < walk * walk_pack(width) || bvh.is_one_leaf_in_order() {
+            bvh.set_packet_plan(plan);
+        }
+    }
+    bvh
 }
 
 /// The candidate builds, the plain one first, then the two-level splits
@@ -141,6 +178,157 @@ pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> 
     let mut first: Vec<u32> = large.into_iter().map(|(_, i)| i).collect();
     first.sort_unstable();
     first
+}
+
+/// The cheapest of [`packet_candidates`] by the count over `rays`, and
+/// its cost (in [`PACKET_TRI`]s a ray).
+fn packet_plan(tris: &[TriangleEdges], rays: &[(Vec3, Vec3, f32)]) -> (Plan, f64) {
+    // Every triangle's hit distance for every ray (infinite where none).
+    let hits: Vec<Vec<f32>> = tris
+        .par_iter()
+        .map(|tri| {
+            let tri = V3Tri::from(tri);
+            rays.iter()
+                .map(|&(o, d, t_min)| {
+                    let (inside, t) = moller_trumbore(o.into(), d.into(), &tri, t_min);
+                    if inside { t } else { f32::INFINITY }
+                })
+                .collect()
+        })
+        .collect();
+    let mut best: Option<(PlanParts, f64)> = None;
+    for (first, groups) in packet_candidates(tris) {
+        let per_ray = |r: usize| {
+            let (o, d, t_min) = rays[r];
+            // Every box is tested against the first triangles' hit.
+            let t = first
+                .iter()
+                .fold(f32::INFINITY, |t, &i| t.min(hits[i as usize][r]));
+            let behind = |(b, g): &(Aabb, Vec<u32>)| {
+                let tested = f64::from(u8::from(enters(b, o, d, t_min, t)));
+                PACKET_BOX + tested * (PACKET_GATHER + g.len() as f64 * PACKET_TRI)
+            };
+            first.len() as f64 * PACKET_TRI + groups.iter().map(behind).sum::<f64>()
+        };
+        let c = (0..rays.len()).map(per_ray).sum::<f64>() / rays.len().max(1) as f64;
+        // Strictly cheaper only: ties keep the earlier, simpler plan.
+        if best.as_ref().is_none_or(|b| c < b.1) {
+            best = Some(((first, groups), c));
+        }
+    }
+    let ((first, groups), c) = best.expect("all triangles first is a candidate");
+    (Plan::new(tris, &first, &groups), c)
+}
+
+/// A packet plan's parts: the first triangles (increasing indices), and
+/// the groups (padded box, triangles).
+type PlanParts = (Vec<u32>, Vec<(Aabb, Vec<u32>)>);
+
+/// The packet plans tried for a scene of finite triangles: all of them
+/// first (no box), then, for each number of first triangles in
+/// [`FIRST_COUNTS`], the largest as the first ones and the rest in groups
+/// of at most each of [`GROUP_SIZES`] triangles, split by the surface area
+/// heuristic (at most [`MAX_GROUPS`] groups).
+fn packet_candidates(tris: &[TriangleEdges]) -> Vec<PlanParts> {
+    let order = by_area(tris);
+    let pad = pad_of(tris);
+    let mut plans = vec![((0..tris.len() as u32).collect(), Vec::new())];
+    for k in FIRST_COUNTS.into_iter().filter(|&k| k < order.len()) {
+        let mut first = order[..k].to_vec();
+        first.sort_unstable();
+        for size in GROUP_SIZES {
+            let mut ids = Vec::new();
+            split_groups(tris, order[k..].to_vec(), size, &mut ids);
+            if ids.len() <= MAX_GROUPS {
+                let groups = ids.into_iter().map(|g| (padded_box(tris, &g, pad), g));
+                plans.push((first.clone(), groups.collect()));
+            }
+        }
+    }
+    plans
+}
+
+/// Whether the ray enters `b` between `t_min` and `t_max` (the count's
+/// box test; the kernels' is in `packet`).
+fn enters(b: &Aabb, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+    let inv = Vec3::ONE / d;
+    let t0 = (Vec3::from(b.lo) - o) * inv;
+    let t1 = (Vec3::from(b.hi) - o) * inv;
+    let near = t0.min(t1).max_element().max(t_min);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
+}
+
+/// The box of the triangles `ids`, padded by `pad` on every side.
+fn padded_box(tris: &[TriangleEdges], ids: &[u32], pad: f32) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for &i in ids {
+        b.grow(&triangle_box(&tris[i as usize]));
+    }
+    b.lo -= pad;
+    b.hi += pad;
+    b
+}
+
+/// The padding of a tree's boxes over these triangles (see
+/// [`build::build`](super::build::build)).
+fn pad_of(tris: &[TriangleEdges]) -> f32 {
+    let extent = tris
+        .iter()
+        .map(triangle_box)
+        .map(|b| b.lo.abs().max(b.hi.abs()).max_element())
+        .fold(1e-30f32, f32::max);
+    extent * (1.0 / 32768.0)
+}
+
+/// `ids` split in two by the surface area heuristic (over centroids, on
+/// the best axis) until each part has at most `max` triangles; the parts
+/// (each by increasing index) appended to `out`, left before right.
+fn split_groups(tris: &[TriangleEdges], mut ids: Vec<u32>, max: usize, out: &mut Vec<Vec<u32>>) {
+    if ids.len() <= max.max(1) {
+        ids.sort_unstable();
+        out.push(ids);
+        return;
+    }
+    let boxes: Vec<Aabb> = ids
+        .iter()
+        .map(|&i| triangle_box(&tris[i as usize]))
+        .collect();
+    let centre = |k: usize, a: usize| boxes[k].lo[a] + boxes[k].hi[a];
+    let mut best = (f32::INFINITY, 0, 0);
+    let mut order: Vec<usize> = (0..ids.len()).collect();
+    for a in 0..3 {
+        order.sort_by(|&x, &y| {
+            centre(x, a)
+                .total_cmp(&centre(y, a))
+                .then(ids[x].cmp(&ids[y]))
+        });
+        // Half areas of the boxes of the first i and of the rest.
+        let mut left = vec![0.0f32; ids.len()];
+        let mut b = Aabb::EMPTY;
+        for (i, &k) in order.iter().enumerate() {
+            b.grow(&boxes[k]);
+            left[i] = b.half_area();
+        }
+        let mut b = Aabb::EMPTY;
+        for i in (1..ids.len()).rev() {
+            b.grow(&boxes[order[i]]);
+            let c = left[i - 1] * i as f32 + b.half_area() * (ids.len() - i) as f32;
+            if c < best.0 {
+                best = (c, a, i);
+            }
+        }
+    }
+    let (_, a, i) = best;
+    order.sort_by(|&x, &y| {
+        centre(x, a)
+            .total_cmp(&centre(y, a))
+            .then(ids[x].cmp(&ids[y]))
+    });
+    let sorted: Vec<u32> = order.iter().map(|&k| ids[k]).collect();
+    let i = if i == 0 { sorted.len() / 2 } else { i };
+    split_groups(tris, sorted[..i].to_vec(), max, out);
+    split_groups(tris, sorted[i..].to_vec(), max, out);
 }
 
 /// The finite triangles, largest first (ties by index).
@@ -211,6 +399,7 @@ fn sample_rays(tris: &[TriangleEdges]) -> Vec<(Vec3, Vec3, f32)> {
 mod tests {
     use super::*;
     use crate::accel::sphere::closest_hit_brute_force_prims;
+    use crate::accel::triangle::NO_PRIM;
     use crate::scene::Scene;
 
     fn widths() -> Vec<SimdWidth> {
@@ -292,6 +481,98 @@ mod tests {
         }
         assert!(split > built / 2, "{split} of {built} builds are two-level");
         assert!(checked > 100_000, "{checked}");
+    }
+
+    /// Every packet plan tried for the small shipped scenes of triangles
+    /// gives, through the columns, exactly brute force's closest hits, at
+    /// each width and with a finite `t_max` too: on rays from the
+    /// surfaces, from inside the box, and through every vertex and edge
+    /// midpoint (where triangles tie).
+    #[test]
+    fn every_packet_plan_equals_brute_force() {
+        let scenes = [
+            Scene::cornell()
+                .triangles
+                .iter()
+                .map(TriangleEdges::from)
+                .collect(),
+            scene("scenes/cornell-obj.toml").0,
+            scene("scenes/cornell-materials.toml").0,
+        ];
+        let mut rng = Pcg32::new(7, 11);
+        let mut u = move || (rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0);
+        let (mut plans, mut groups, mut checked) = (0, 0, 0);
+        for tris in &scenes {
+            let mut rays = sample_rays(tris);
+            for _ in 0..2048 {
+                let o = Vec3::new(2.2 * u() - 1.1, 2.2 * u() - 1.1, 4.0 * u() - 3.0);
+                let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::Z);
+                rays.push((o, d, 1e-4));
+            }
+            let eye = Vec3::new(0.1, -0.2, -3.0);
+            for t in tris {
+                let corners = [t.v0, t.v0 + t.e1, t.v0 + t.e2];
+                for (k, &p) in corners.iter().enumerate() {
+                    let mid = 0.5 * (p + corners[(k + 1) % 3]);
+                    for target in [p, mid] {
+                        rays.push((eye, (target - eye).normalize(), 1e-4));
+                    }
+                }
+            }
+            let column = |f: &dyn Fn(&(Vec3, Vec3, f32)) -> f32| -> Vec<f32> {
+                rays.iter().map(f).collect()
+            };
+            let o = [column(&|r| r.0.x), column(&|r| r.0.y), column(&|r| r.0.z)];
+            let d = [column(&|r| r.1.x), column(&|r| r.1.y), column(&|r| r.1.z)];
+            let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
+            for width in widths() {
+                let params = BuildParams::for_lanes(width.lanes());
+                let mut bvh = Bvh::assemble(tris, &[], &[], width, &params);
+                for (first, g) in packet_candidates(tris) {
+                    plans += 1;
+                    groups += g.len();
+                    bvh.set_packet_plan(Plan::new(tris, &first, &g));
+                    for t_max in [f32::INFINITY, 1.5] {
+                        let (mut t, mut prim) = (vec![0.0; rays.len()], vec![0; rays.len()]);
+                        bvh.closest_hits_columns(o, d, (1e-4, t_max), &mut t, &mut prim);
+                        for (i, &(o, d, t_min)) in rays.iter().enumerate() {
+                            let want = crate::accel::triangle::closest_hit_brute_force(
+                                tris, o, d, t_min, t_max,
+                            )
+                            .map_or((NO_PRIM, t_max.to_bits()), |h| (h.triangle, h.t.to_bits()));
+                            assert_eq!(
+                                (prim[i], t[i].to_bits()),
+                                want,
+                                "ray {i} {o} {d} to {t_max}, plan {first:?}, {} groups, {} lanes",
+                                g.len(),
+                                width.lanes()
+                            );
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            plans > 40 && groups > 2 * plans,
+            "{plans} plans, {groups} groups"
+        );
+        assert!(checked > 500_000, "{checked}");
+    }
+
+    /// The packet plan of the Cornell box: the room and the light (the 12
+    /// largest triangles) for every ray, each block behind its box.
+    #[test]
+    fn cornell_packets_test_the_blocks_behind_boxes() {
+        let cornell: Vec<TriangleEdges> = Scene::cornell()
+            .triangles
+            .iter()
+            .map(TriangleEdges::from)
+            .collect();
+        for width in widths() {
+            let bvh = build(&cornell, &[], width);
+            assert_eq!(bvh.packet_plan(), Some((12, 2)), "{} lanes", width.lanes());
+        }
     }
 
     /// The chooser keeps the plain single leaf for the Cornell box (four
