@@ -141,6 +141,25 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     fn index_write_to(i: Self::Index, out: &mut [u32]);
 }
 
+/// For each 8-bit mask, the numbers of its set bits in increasing order
+/// (then zeros): [`Lanes::compress`] at 8 lanes.
+static COMPRESS_8: [[u8; 8]; 256] = {
+    let mut table = [[0u8; 8]; 256];
+    let mut bits = 0;
+    while bits < 256 {
+        let (mut l, mut n) = (0, 0);
+        while l < 8 {
+            if bits & (1 << l) != 0 {
+                table[bits][n] = l as u8;
+                n += 1;
+            }
+            l += 1;
+        }
+        bits += 1;
+    }
+    table
+};
+
 impl Lanes for f32x8 {
     const LANES: usize = 8;
     type Index = i32x8;
@@ -175,6 +194,15 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn bits(m: f32x8) -> u32 {
         m.to_bitmask()
+    }
+    #[inline(always)]
+    fn compress(bits: u32, first: u32, out: &mut [u32]) -> usize {
+        // The set lanes' numbers, packed low, from a table; then all
+        // eight stored at once.
+        let packed = COMPRESS_8[(bits & 0xff) as usize].map(i32::from);
+        let lanes = i32x8::from(packed) + i32x8::splat(first as i32);
+        out[..8].copy_from_slice(&bytemuck::cast::<i32x8, [u32; 8]>(lanes));
+        (bits & 0xff).count_ones() as usize
     }
     #[inline(always)]
     fn min_lane(self) -> f32 {
