@@ -528,9 +528,10 @@ impl Bvh {
     /// `d`; its hit goes to `t[i]` and `prim[i]` ([`NO_PRIM`] where none).
     /// The same hits, bit for bit.
     ///
-    /// In a scene of one leaf of triangles (the Cornell box) the rays go
-    /// 8 or 16 at a time, one per lane, each triangle broadcast to every
-    /// lane (`packet`): no per-ray set-up or reduction.
+    /// In a small scene of triangles (the Cornell box) the rays go 8 or 16
+    /// at a time, one per lane, each triangle broadcast to every lane, the
+    /// small triangles behind boxes (`packet`): no per-ray set-up or
+    /// reduction.
     ///
     /// # Panics
     ///

@@ -24,6 +24,13 @@
 //! 32 triangles, and a ray that misses the sphere then tests them and one
 //! box (measured: the intersect stage 91 → 64 ns a ray at 16 lanes).
 //!
+//! The wavefront's batches of rays test small scenes of triangles in ray
+//! packets instead (`packet`), by a plan chosen here the same way: the
+//! largest triangles for every ray, the rest in groups behind boxes
+//! ([`packet_plan`]). The plan is used where it counts cheaper than the
+//! walk (a pack of the walk is measured against a triangle in packets:
+//! [`walk_pack`]), and always where the tree is one leaf.
+//!
 //! "Cheapest" is counted, not timed, so the choice is the same on every
 //! run: the mean of `nodes · cost_node + packs · cost_pack` over a fixed
 //! set of rays like a path tracer's (from random points on the triangles,
