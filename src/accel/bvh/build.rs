@@ -508,6 +508,10 @@ pub(crate) struct Topology {
     pub pack_counts: [usize; PrimKind::MAX],
 }
 
+/// Boxes are padded by this share of the largest coordinate (see
+/// [`build`]).
+pub(crate) const PAD: f32 = 1.0 / 32768.0;
+
 /// Build the tree over `prims` (finite boxes) with the current rayon pool.
 ///
 /// Boxes are padded on every side, when they go into the nodes, by `2^-15`
@@ -539,7 +543,7 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
             .max_element()
             .max(1e-30)
     };
-    let pad = Vec3A::splat(extent * (1.0 / 32768.0));
+    let pad = Vec3A::splat(extent * PAD);
     let tree = (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params));
     let mut topo = Topology {
         nodes: Vec::new(),

@@ -294,7 +294,7 @@ fn pad_of(tris: &[TriangleEdges]) -> f32 {
         .map(triangle_box)
         .map(|b| b.lo.abs().max(b.hi.abs()).max_element())
         .fold(1e-30f32, f32::max);
-    extent * (1.0 / 32768.0)
+    extent * super::build::PAD
 }
 
 /// `ids` split in two by the surface area heuristic (over centroids, on
