@@ -116,18 +116,7 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     /// `first + l` for each bit `l` set in `bits`, in increasing order,
     /// into the start of `out`; returns how many. May write up to
     /// [`Lanes::LANES`] values (`out` must have room for them).
-    #[inline(always)]
-    fn compress(bits: u32, first: u32, out: &mut [u32]) -> usize {
-        let out = &mut out[..Self::LANES];
-        let mut n = 0;
-        // Every lane's value is written; the count moves past the ones
-        // that are set (no branch).
-        for l in 0..Self::LANES {
-            out[n.min(Self::LANES - 1)] = first + l as u32;
-            n += ((bits >> l) & 1) as usize;
-        }
-        n
-    }
+    fn compress(bits: u32, first: u32, out: &mut [u32]) -> usize;
     /// The smallest lane (no lane may be NaN).
     fn min_lane(self) -> f32;
     /// The smallest index among the lanes whose value is `t`

@@ -401,10 +401,6 @@ impl Bvh {
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
         bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
-        if bvh.is_one_leaf_in_order() {
-            let all: Vec<u32> = (0..tris.len() as u32).collect();
-            bvh.packets = packet::Plan::new(tris, &all, &[]);
-        }
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
         bvh

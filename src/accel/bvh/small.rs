@@ -115,7 +115,8 @@ pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth
     for bvh in candidates(tris, spheres, width) {
         if rays.is_empty() {
             // Nothing to count on: the plain build, the first candidate.
-            return bvh;
+            best = Some((bvh, 0.0));
+            break;
         }
         let c = cost(&bvh, &rays);
         // Strictly cheaper only: ties keep the earlier, simpler build.
@@ -125,11 +126,13 @@ pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth
     }
     let (mut bvh, walk) = best.expect("the plain build is a candidate");
     if spheres.is_empty() && tris.iter().all(TriangleEdges::is_finite) {
+        // (With no rays to count on, every plan counts 0: the first, all
+        // triangles first, is kept.)
         let (plan, packets) = packet_plan(tris, &rays);
-        // A scene of one leaf in index order has its plan already (all
-        // first); a better one replaces it. A tree keeps its walk unless
+        // A tree of one leaf in index order, whose walk tests every
+        // triangle, always takes the packets; a tree keeps its walk unless
         // the packets cost less.
-        if packets * PACKET_TRI < walk * walk_pack(width) || bvh.is_one_leaf_in_order() {
+        if bvh.is_one_leaf_in_order() || packets * PACKET_TRI < walk * walk_pack(width) {
             bvh.set_packet_plan(plan);
         }
     }
@@ -425,6 +428,26 @@ mod tests {
             .collect()
     }
 
+    fn cornell() -> Vec<TriangleEdges> {
+        Scene::cornell()
+            .triangles
+            .iter()
+            .map(TriangleEdges::from)
+            .collect()
+    }
+
+    /// The counted rays of `tris` and 2048 more from random points in and
+    /// around the Cornell box's room, in random directions.
+    fn test_rays(tris: &[TriangleEdges], mut u: impl FnMut() -> f32) -> Vec<(Vec3, Vec3, f32)> {
+        let mut rays = sample_rays(tris);
+        for _ in 0..2048 {
+            let o = Vec3::new(2.2 * u() - 1.1, 2.2 * u() - 1.1, 4.0 * u() - 3.0);
+            let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::Z);
+            rays.push((o, d, 1e-4));
+        }
+        rays
+    }
+
     fn scene(name: &str) -> (Vec<TriangleEdges>, Vec<Sphere>) {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(name);
         let s = Scene::load(&path).expect("a shipped scene loads");
@@ -442,14 +465,7 @@ mod tests {
     #[test]
     fn every_candidate_equals_brute_force() {
         let scenes = [
-            (
-                Scene::cornell()
-                    .triangles
-                    .iter()
-                    .map(TriangleEdges::from)
-                    .collect(),
-                Vec::new(),
-            ),
+            (cornell(), Vec::new()),
             scene("scenes/cornell-obj.toml"),
             scene("scenes/cornell-spheres.toml"),
             scene("scenes/cornell-materials.toml"),
@@ -458,12 +474,7 @@ mod tests {
         let mut u = move || (rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0);
         let (mut built, mut checked, mut split) = (0, 0, 0);
         for (tris, spheres) in &scenes {
-            let mut rays = sample_rays(tris);
-            for _ in 0..2048 {
-                let o = Vec3::new(2.2 * u() - 1.1, 2.2 * u() - 1.1, 4.0 * u() - 3.0);
-                let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::Z);
-                rays.push((o, d, 1e-4));
-            }
+            let rays = test_rays(tris, &mut u);
             for width in widths() {
                 for bvh in candidates(tris, spheres, width) {
                     built += 1;
@@ -507,11 +518,7 @@ mod tests {
     #[test]
     fn every_packet_plan_equals_brute_force() {
         let scenes = [
-            Scene::cornell()
-                .triangles
-                .iter()
-                .map(TriangleEdges::from)
-                .collect(),
+            cornell(),
             scene("scenes/cornell-obj.toml").0,
             scene("scenes/cornell-materials.toml").0,
         ];
@@ -519,12 +526,7 @@ mod tests {
         let mut u = move || (rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0);
         let (mut plans, mut groups, mut checked) = (0, 0, 0);
         for tris in &scenes {
-            let mut rays = sample_rays(tris);
-            for _ in 0..2048 {
-                let o = Vec3::new(2.2 * u() - 1.1, 2.2 * u() - 1.1, 4.0 * u() - 3.0);
-                let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::Z);
-                rays.push((o, d, 1e-4));
-            }
+            let mut rays = test_rays(tris, &mut u);
             let eye = Vec3::new(0.1, -0.2, -3.0);
             for t in tris {
                 let corners = [t.v0, t.v0 + t.e1, t.v0 + t.e2];
@@ -580,11 +582,7 @@ mod tests {
     /// largest triangles) for every ray, each block behind its box.
     #[test]
     fn cornell_packets_test_the_blocks_behind_boxes() {
-        let cornell: Vec<TriangleEdges> = Scene::cornell()
-            .triangles
-            .iter()
-            .map(TriangleEdges::from)
-            .collect();
+        let cornell = cornell();
         for width in widths() {
             let bvh = build(&cornell, &[], width);
             assert_eq!(bvh.packet_plan(), Some((12, 2)), "{} lanes", width.lanes());
@@ -597,11 +595,7 @@ mod tests {
     /// at 8 lanes (measured 49 → 41 ns a ray).
     #[test]
     fn chooser_picks_by_counted_cost() {
-        let cornell: Vec<TriangleEdges> = Scene::cornell()
-            .triangles
-            .iter()
-            .map(TriangleEdges::from)
-            .collect();
+        let cornell = cornell();
         let bvh = build(&cornell, &[], SimdWidth::W8);
         assert_eq!((bvh.node_count(), bvh.first_pack_count()), (0, 0));
         let (tris, spheres) = scene("scenes/cornell-obj.toml");
