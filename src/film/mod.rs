@@ -22,6 +22,7 @@ pub use wtacc::{AccMeta, WtaccError};
 use crate::scene::{Aov, AovSet};
 use glam::Vec3;
 use std::ops::Range;
+use wide::{f32x8, u32x8, u64x4};
 
 /// Fixed-point units per unit of radiance.
 pub const FIXED_POINT_SCALE: f64 = 4_294_967_296.0;
@@ -38,10 +39,16 @@ pub fn accumulate(sum: &mut PixelSum, rgb: Vec3) -> bool {
     let Some(q) = to_fixed(rgb) else {
         return false;
     };
+    accumulate_fixed(sum, q);
+    true
+}
+
+/// Add a valid sample's fixed-point value ([`to_fixed`]) to a pixel's sums.
+#[inline(always)]
+pub fn accumulate_fixed(sum: &mut PixelSum, q: [u64; 3]) {
     for (s, q) in sum.iter_mut().zip(q) {
         *s += q as u128;
     }
-    true
 }
 
 /// A radiance sample in fixed point, as [`accumulate`] adds it: `None`
@@ -53,8 +60,67 @@ pub fn to_fixed(rgb: Vec3) -> Option<[u64; 3]> {
     if c.iter().any(|x| !(0.0..MAX_SAMPLE).contains(x)) {
         return None;
     }
-    // x < 2^31, so x · 2^32 < 2^63 fits an i64 (one instruction to convert).
-    Some(c.map(|x| (x as f64 * FIXED_POINT_SCALE).round() as i64 as u64))
+    let [r, g, b] = c;
+    Some([fixed_of_valid(r), fixed_of_valid(g), fixed_of_valid(b)])
+}
+
+/// [`to_fixed`] of eight samples, one per lane of each channel: the
+/// fixed-point values (lane `l` of channel `c` is the `c`-th value of
+/// sample `l`; anything for an invalid sample) and the mask of the valid
+/// samples (bit `l` for sample `l`). Written to compile to vector
+/// instructions: the film's adds at the end of every path are a few
+/// instructions each.
+#[inline(always)]
+pub fn to_fixed_8(rgb: [f32x8; 3]) -> ([[u64; 8]; 3], u8) {
+    let ok = |x: f32x8| x.simd_ge(f32x8::ZERO) & x.simd_lt(f32x8::splat(MAX_SAMPLE));
+    let valid = ok(rgb[0]) & ok(rgb[1]) & ok(rgb[2]);
+    let [r, g, b] = rgb;
+    (
+        [fixed_8(r), fixed_8(g), fixed_8(b)],
+        valid.to_bitmask() as u8,
+    )
+}
+
+/// [`fixed_of_valid`] of eight lanes: the exponents' shifts in 32-bit
+/// lanes, the significands shifted in 64-bit ones.
+#[inline(always)]
+fn fixed_8(x: f32x8) -> [u64; 8] {
+    let bits = bytemuck::cast::<f32x8, u32x8>(x) & u32x8::splat(0x7fff_ffff);
+    let e: u32x8 = bits >> 23;
+    let implicit = e.simd_gt(u32x8::ZERO) & u32x8::splat(1 << 23);
+    let m = (bits & u32x8::splat(0x7f_ffff)) | implicit;
+    let up = e.max(u32x8::splat(118)).min(u32x8::splat(157)) - u32x8::splat(118);
+    let s = (u32x8::splat(118) - e.min(u32x8::splat(118))).min(u32x8::splat(25));
+    let half = (u32x8::ONE << s) >> 1;
+    // (No `array::map` here: it is not always inlined.)
+    let half_of = |v: u32x8, k: usize| {
+        let v = v.as_array();
+        u64x4::from([v[k], v[k + 1], v[k + 2], v[k + 3]].map(u64::from))
+    };
+    let q = |k| ((half_of(m, k) << half_of(up, k)) + half_of(half, k)) >> half_of(s, k);
+    bytemuck::cast([q(0), q(4)])
+}
+
+/// `x · 2³²` rounded to the nearest integer, halves away from zero — the
+/// value of `(x as f64 * FIXED_POINT_SCALE).round()`, which is exact
+/// before it rounds — for `0 ≤ x <` [`MAX_SAMPLE`], computed from the
+/// bits of `x` with integer shifts alone (so that eight lanes compile to
+/// vector shifts; `f64` to `i64` has no AVX2 instruction). `x` is
+/// `m · 2^(e − 150)` (`m` the significand with its implicit bit, `e` the
+/// biased exponent), so `x · 2³² = m · 2^(e − 118)`: `m` shifted left
+/// when `e ≥ 118` (less than 2⁶³ below 2³¹), else `m / 2^s` rounded, with
+/// `s = 118 − e`: `(m + 2^(s−1)) >> s`, which is 0 for every `s ≥ 25`
+/// (`m < 2²⁴`), so `s` is capped there.
+#[inline(always)]
+fn fixed_of_valid(x: f32) -> u64 {
+    // (-0 is valid: its sign bit goes.)
+    let bits = x.to_bits() & 0x7fff_ffff;
+    let e = bits >> 23;
+    let m = (bits & 0x7f_ffff) as u64 | if e > 0 { 1 << 23 } else { 0 };
+    let up = m << (e.clamp(118, 157) - 118);
+    let s = 118u32.saturating_sub(e).clamp(1, 25);
+    let down = (m + (1 << (s - 1))) >> s;
+    if e >= 118 { up } else { down }
 }
 
 /// Add one sample to a pixel's sums and its AOV sums (`aovs`, the pixel's
@@ -71,9 +137,7 @@ pub fn accumulate_with_aovs(
 ) -> bool {
     let q = to_fixed(rgb);
     if let Some(q) = q {
-        for (s, q) in sum.iter_mut().zip(q) {
-            *s += q as u128;
-        }
+        accumulate_fixed(sum, q);
     }
     aovs.add(i, aov, q);
     q.is_some()
@@ -244,6 +308,58 @@ pub enum MergeError {
 #[allow(clippy::single_range_in_vec_init)]
 mod tests {
     use super::*;
+
+    /// The fixed-point value from the bits is the rounded `f64` product,
+    /// for every valid `f32` there is (1.3 billion, on all threads, and -0);
+    /// and
+    /// eight lanes at a time give the scalar values and validity.
+    #[test]
+    fn fixed_point_values_are_the_rounded_products_for_every_float() {
+        use rayon::prelude::*;
+        let end = MAX_SAMPLE.to_bits();
+        let wrong = (0..end.div_ceil(1 << 16))
+            .into_par_iter()
+            .map(|hi| {
+                let bits: Vec<u32> = ((hi << 16)..((hi + 1) << 16).min(end)).collect();
+                let mut wrong = 0;
+                for b in bits.chunks(8) {
+                    let x: [f32; 8] = std::array::from_fn(|l| f32::from_bits(b[l % b.len()]));
+                    let lanes = fixed_8(f32x8::from(x));
+                    for l in 0..8 {
+                        let want = (x[l] as f64 * FIXED_POINT_SCALE).round() as u64;
+                        wrong += usize::from(fixed_of_valid(x[l]) != want || lanes[l] != want);
+                    }
+                }
+                wrong
+            })
+            .sum::<usize>();
+        assert_eq!(wrong, 0);
+        let lanes = [
+            [0.0, 1e-10, 2.3283064e-10, 0.5, 1.0, 3.75, 2.1e9, 1e-45],
+            [
+                f32::NAN,
+                -0.0,
+                -1.0,
+                f32::INFINITY,
+                MAX_SAMPLE,
+                0.25,
+                7.0,
+                1e30,
+            ],
+            [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0],
+        ];
+        let (q, mask) = to_fixed_8(lanes.map(f32x8::from));
+        for l in 0..8 {
+            let rgb = Vec3::new(lanes[0][l], lanes[1][l], lanes[2][l]);
+            let want = to_fixed(rgb);
+            assert_eq!(mask >> l & 1 == 1, want.is_some(), "lane {l}");
+            if let Some(want) = want {
+                assert_eq!([q[0][l], q[1][l], q[2][l]], want, "lane {l}");
+            }
+        }
+        assert_eq!(mask, 0b0110_0010);
+        assert_eq!(fixed_of_valid(-0.0), 0);
+    }
 
     #[test]
     fn invalid_samples_are_refused() {

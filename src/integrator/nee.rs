@@ -42,6 +42,13 @@ impl Estimator {
         self.rr_depth.is_some_and(|d| depth >= d)
     }
 
+    /// Whether vertices have a roulette number's slot, drawn or skipped
+    /// ([`roulette_number`](Self::roulette_number)): all but the report's.
+    #[inline]
+    pub fn has_roulette_slot(&self) -> bool {
+        self.integrator != Integrator::Report
+    }
+
     /// Whether vertices sample emitters (and weight emission by MIS).
     #[inline]
     pub fn samples_lights(&self) -> bool {
@@ -70,7 +77,7 @@ impl Estimator {
         path: &mut S::Path,
         depth: u32,
     ) -> Option<f32> {
-        if self.integrator == Integrator::Report {
+        if !self.has_roulette_slot() {
             return None;
         }
         if self.roulette_at(depth) {

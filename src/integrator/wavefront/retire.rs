@@ -1,7 +1,7 @@
 //! Stage *retire*: finished paths go into the film and leave the queue.
 
-use super::queue::{NO_HIT, PathQueue, RETIRED};
-use crate::film::accumulate;
+use super::queue::{NO_HIT, PathQueue, RETIRED, load8};
+use crate::film::{accumulate_fixed, to_fixed_8};
 use crate::integrator::TileJob;
 use crate::integrator::nee::{Estimator, survival};
 use crate::integrator::sampler::Sampler;
@@ -22,11 +22,41 @@ pub fn retire<S: Sampler>(
     last: bool,
     job: &mut TileJob,
 ) -> u64 {
-    let mut invalid = 0;
+    // At the last depth every row finishes: none is marked.
+    if !last {
+        mark_finished(queue, (sampler, estimator), depth);
+    }
+    let invalid = if job.has_aovs() {
+        add_with_aovs(queue, job, last)
+    } else {
+        add(queue, job, last)
+    };
+    if last {
+        queue.set_len(0);
+    } else {
+        queue.compact();
+    }
+    invalid
+}
+
+/// Mark [`RETIRED`] the rows that finish before the last depth: those
+/// whose ray escaped, and those Russian roulette ends (whose numbers have
+/// a roulette slot: it is drawn or skipped here for every live row).
+fn mark_finished<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    (sampler, estimator): (&S, &Estimator),
+    depth: u32,
+) {
     let n = queue.len();
-    let aovs = job.has_aovs();
+    if !estimator.has_roulette_slot() {
+        // A loop without branches: an escape is no pattern to predict.
+        for h in &mut queue.hit[..n] {
+            *h = if *h == NO_HIT { RETIRED } else { *h };
+        }
+        return;
+    }
     for i in 0..n {
-        let mut done = last || queue.hit[i] == NO_HIT;
+        let mut done = queue.hit[i] == NO_HIT;
         if !done && let Some(u) = estimator.roulette_number(sampler, &mut queue.sampler[i], depth) {
             let beta = glam::Vec3::new(queue.beta[0][i], queue.beta[1][i], queue.beta[2][i]);
             let q = survival(beta);
@@ -39,23 +69,56 @@ pub fn retire<S: Sampler>(
             }
         }
         if done {
-            let [r, g, b] = queue.radiance.each_ref().map(|c| c[i]);
-            let rgb = glam::Vec3::new(r, g, b);
-            let valid = if aovs {
-                job.add_sample(queue.pixel[i], rgb, &queue.aov_sample(i))
-            } else {
-                accumulate(job.sum_of(queue.pixel[i]), rgb)
-            };
-            if !valid {
-                invalid += 1;
-            }
             queue.hit[i] = RETIRED;
         }
     }
-    if last {
-        queue.set_len(0);
-    } else {
-        queue.compact();
+}
+
+/// Add the radiance of every [`RETIRED`] row (of every row if `all`) to
+/// its pixel's sums, finding them eight rows at a time. Returns the number
+/// of invalid samples.
+fn add<P>(queue: &PathQueue<P>, job: &mut TileJob, all: bool) -> u64 {
+    let mut invalid = 0;
+    let n = queue.len();
+    for i in (0..n).step_by(8) {
+        let lanes = (n - i).min(8);
+        let hit = &queue.hit[i..i + lanes];
+        let done = if all {
+            u8::MAX >> (8 - lanes)
+        } else {
+            hit.iter()
+                .enumerate()
+                .fold(0u8, |m, (l, &h)| m | ((h == RETIRED) as u8) << l)
+        };
+        if done == 0 {
+            continue;
+        }
+        let [r, g, b] = &queue.radiance;
+        let (fixed, valid) = to_fixed_8([load8(r, i), load8(g, i), load8(b, i)]);
+        invalid += (done & !valid).count_ones() as u64;
+        let mut add = done & valid;
+        while add != 0 {
+            let l = add.trailing_zeros() as usize;
+            add &= add - 1;
+            let q = [fixed[0][l], fixed[1][l], fixed[2][l]];
+            accumulate_fixed(job.sum_of(queue.pixel[i + l]), q);
+        }
+    }
+    invalid
+}
+
+/// [`add`], with the AOVs of each finished path. Returns the number of
+/// invalid radiance samples.
+fn add_with_aovs<P: Copy>(queue: &PathQueue<P>, job: &mut TileJob, all: bool) -> u64 {
+    let mut invalid = 0;
+    for i in 0..queue.len() {
+        if all || queue.hit[i] == RETIRED {
+            let [r, g, b] = queue.radiance.each_ref().map(|c| c[i]);
+            let rgb = glam::Vec3::new(r, g, b);
+            if !job.add_sample(queue.pixel[i], rgb, &queue.aov_sample(i)) {
+                invalid += 1;
+            }
+        }
     }
     invalid
 }
