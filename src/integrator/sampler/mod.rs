@@ -20,7 +20,7 @@ pub use sobol::{Sobol, SobolPath};
 
 use rand_core::Rng;
 use rand_pcg::Pcg32;
-use wide::f32x8;
+use wide::{f32x8, i32x8, u64x4};
 
 /// Where the numbers of every path come from.
 pub trait Sampler: Send + Sync {
@@ -101,6 +101,17 @@ impl Sampler for Independent {
     fn next(&self, path: &mut PathRng) -> f32 {
         path.next_f32()
     }
+
+    #[inline]
+    fn next_8(&self, paths: &mut [PathRng]) -> f32x8 {
+        let [x] = PathRng::draw_8(paths);
+        x
+    }
+
+    #[inline]
+    fn next_2d_8(&self, paths: &mut [PathRng]) -> [f32x8; 2] {
+        PathRng::draw_8(paths)
+    }
 }
 
 /// The random stream of one camera sample: a `rand_pcg::Pcg32` kept as its
@@ -138,6 +149,81 @@ impl PathRng {
         self.state = pcg.state();
         (bits >> 8) as f32 * (1.0 / 16_777_216.0)
     }
+
+    /// The next `K` numbers ([`next_f32`](Self::next_f32)) of up to eight
+    /// streams, lane `l` from `paths[l]` (lanes past them hold numbers of
+    /// no stream). Eight streams step at once in 64-bit vector lanes:
+    /// `Pcg32`'s step and output (XSH RR) written out.
+    #[inline(always)]
+    pub fn draw_8<const K: usize>(paths: &mut [PathRng]) -> [f32x8; K] {
+        let Ok(eight) = <&mut [PathRng; 8]>::try_from(&mut *paths) else {
+            let mut x = [[0.0; 8]; K];
+            for (l, p) in paths.iter_mut().enumerate() {
+                for x in &mut x {
+                    x[l] = p.next_f32();
+                }
+            }
+            return x.map(f32x8::from);
+        };
+        let half = |k: usize, f: fn(&PathRng) -> u64| {
+            u64x4::from([
+                f(&eight[k]),
+                f(&eight[k + 1]),
+                f(&eight[k + 2]),
+                f(&eight[k + 3]),
+            ])
+        };
+        // (No `array::map` here: it is not always inlined.)
+        let mut state = [half(0, |p| p.state), half(4, |p| p.state)];
+        // `Pcg32::from_state`'s increment: the stream shifted, odd.
+        let inc = |k| half(k, |p| p.stream) << 1 | u64x4::ONE;
+        let increment = [inc(0), inc(4)];
+        let draws = std::array::from_fn(|_| {
+            let (a, b) = (
+                pcg_step(&mut state[0], increment[0]),
+                pcg_step(&mut state[1], increment[1]),
+            );
+            let bits = [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]];
+            i32x8::from(bits).round_float() * f32x8::splat(1.0 / 16_777_216.0)
+        });
+        for (l, p) in eight.iter_mut().enumerate() {
+            p.state = state[l / 4].as_array()[l % 4];
+        }
+        draws
+    }
+}
+
+/// The multiplier of `Pcg32`'s LCG (`rand_pcg::Lcg64Xsh32`).
+const PCG_MULTIPLIER: u64 = 6_364_136_223_846_793_005;
+
+/// One step of four `Pcg32` streams in 64-bit lanes: each one's output
+/// (XSH RR, from the state before the step) shifted to its top 24 bits.
+#[inline(always)]
+fn pcg_step(state: &mut u64x4, increment: u64x4) -> [i32; 4] {
+    let old = *state;
+    *state = mul_u64(old, u64x4::splat(PCG_MULTIPLIER)) + increment;
+    let low32 = u64x4::splat(u32::MAX.into());
+    let xsh = ((old >> 18) ^ old) >> 27 & low32;
+    let rot = old >> 59;
+    let rotated = (xsh >> rot | xsh << (u64x4::splat(32) - rot)) & low32;
+    let top24: u64x4 = rotated >> 8;
+    let t = top24.as_array();
+    [t[0] as i32, t[1] as i32, t[2] as i32, t[3] as i32]
+}
+
+/// `a · b mod 2⁶⁴`, lane by lane, from 32-bit halves (AVX2 multiplies
+/// 32 by 32 bits): `lo·lo + ((hi·lo + lo·hi) << 32)`.
+#[inline(always)]
+fn mul_u64(a: u64x4, b: u64x4) -> u64x4 {
+    mul_lo32(a, b) + ((mul_lo32(a >> 32, b) + mul_lo32(a, b >> 32)) << 32)
+}
+
+/// The full 64-bit products of the lanes' low 32 bits (LLVM makes the
+/// masked product one `vpmuludq`).
+#[inline(always)]
+fn mul_lo32(a: u64x4, b: u64x4) -> u64x4 {
+    let low32 = u64x4::splat(u32::MAX.into());
+    (a & low32) * (b & low32)
 }
 
 /// The SplitMix64 finaliser: a bijective 64-bit mix.
@@ -162,6 +248,27 @@ mod tests {
         for _ in 0..100 {
             let want = (theirs.next_u32() >> 8) as f32 / 16_777_216.0;
             assert_eq!(ours.next_f32().to_bits(), want.to_bits());
+        }
+    }
+
+    /// Eight streams at once draw each stream's own numbers, full groups
+    /// and partial ones alike.
+    #[test]
+    fn eight_streams_draw_their_own_numbers() {
+        let sampler = Independent::new(3);
+        for lanes in 0..=8 {
+            let start: Vec<PathRng> = (0..lanes).map(|l| sampler.start(l * 977, l + 5)).collect();
+            let (mut eight, mut one) = (start.clone(), start);
+            for _ in 0..50 {
+                let [a, b] = sampler.next_2d_8(&mut eight);
+                let c = sampler.next_8(&mut eight);
+                for (l, p) in one.iter_mut().enumerate() {
+                    let want = [0; 3].map(|_| p.next_f32().to_bits());
+                    let got = [a, b, c].map(|v| v.to_array()[l].to_bits());
+                    assert_eq!(got, want, "{lanes} lanes, lane {l}");
+                }
+            }
+            assert_eq!(eight, one);
         }
     }
 

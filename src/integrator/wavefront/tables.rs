@@ -23,6 +23,9 @@ pub struct Tables {
     pub sphere_center: Vec<V3<f32>>,
     /// Emitted radiance of each material.
     pub emission: Vec<[f32; 3]>,
+    /// Whether each primitive's material emits, and one more entry
+    /// (false) that every miss reads ([`Tables::emits`]).
+    emitting: Vec<bool>,
     /// Scattering model of each material.
     pub model: Vec<Model>,
     /// The diffuse BRDF `reflectance / π` of each primitive's material:
@@ -67,6 +70,10 @@ impl Tables {
                 .map(|m| m.emission.to_array())
                 .collect(),
             model: scene.materials.iter().map(|m| m.model).collect(),
+            emitting: (materials.iter())
+                .map(|&m| scene.materials[m as usize].emission != glam::Vec3::ZERO)
+                .chain([false])
+                .collect(),
             brdf: [0, 1, 2].map(|c| materials.iter().map(|m| brdf(m)[c]).collect()),
             material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
@@ -85,6 +92,13 @@ impl Tables {
             },
             epsilon: scene.ray_epsilon(),
         }
+    }
+
+    /// Whether the surface hit `hit` (a primitive, or a miss) emits: a
+    /// lookup without a branch.
+    #[inline(always)]
+    pub fn emits(&self, hit: u32) -> bool {
+        self.emitting[(hit as usize).min(self.emitting.len() - 1)]
     }
 
     /// The front (outward) unit normal of primitive `prim` where the ray
