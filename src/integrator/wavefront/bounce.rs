@@ -110,7 +110,8 @@ mod tests {
 
     #[test]
     fn every_row_bounces_as_the_scalar_routine_whatever_the_tail() {
-        let tables = Tables::new(&Scene::cornell());
+        let scene = Scene::cornell();
+        let tables = Tables::new(&scene);
         let sampler = Independent::new(11);
         for n in 0..=17 {
             let before = queue(n, &sampler);
@@ -122,7 +123,9 @@ mod tests {
                 let tri = before.hit[i] as usize;
                 let col = |c: &[Vec<f32>; 3]| V3::new(c[0][i], c[1][i], c[2][i]);
                 let of_tri = |c: &[Vec<f32>; 3]| V3::new(c[0][tri], c[1][tri], c[2][tri]);
-                let (normal, brdf) = (of_tri(&tables.normals), of_tri(&tables.brdf));
+                let normal = of_tri(&tables.normals);
+                let material = &scene.materials[scene.triangles[tri].material as usize];
+                let brdf = V3::from(material.reflectance / std::f32::consts::PI);
                 let mut path = before.sampler[i];
                 let u = sampler.next_2d(&mut path);
                 let (o, d) = (col(&before.o), col(&before.d));

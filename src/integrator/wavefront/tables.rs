@@ -23,14 +23,16 @@ pub struct Tables {
     pub sphere_center: Vec<V3<f32>>,
     /// Emitted radiance of each material.
     pub emission: Vec<[f32; 3]>,
+    /// Per primitive, what a bounce reads of it, in one row of eight
+    /// (front normal x, y, z — zero for spheres —, the diffuse BRDF
+    /// `reflectance / π` of its material, R, G, B, and two zeros): eight rows load as eight vectors and transpose into
+    /// columns ([`Tables::rows_8`]), cheaper than 48 loads lane by lane.
+    rows: Vec<[f32; 8]>,
     /// Whether each primitive's material emits, and one more entry
     /// (false) that every miss reads ([`Tables::emits`]).
     emitting: Vec<bool>,
     /// Scattering model of each material.
     pub model: Vec<Model>,
-    /// The diffuse BRDF `reflectance / π` of each primitive's material:
-    /// R, G, B columns.
-    pub brdf: [Vec<f32>; 3],
     /// Each material's colour as [`Surface::tint`] takes it, per RGB
     /// channel (columns indexed by material).
     pub tint: [Vec<f32>; 3],
@@ -74,7 +76,16 @@ impl Tables {
                 .map(|&m| scene.materials[m as usize].emission != glam::Vec3::ZERO)
                 .chain([false])
                 .collect(),
-            brdf: [0, 1, 2].map(|c| materials.iter().map(|m| brdf(m)[c]).collect()),
+            rows: (materials.iter().enumerate())
+                .map(|(p, m)| {
+                    let n = scene
+                        .triangles
+                        .get(p)
+                        .map_or(glam::Vec3::ZERO, |t| t.normal);
+                    let f = brdf(m);
+                    [n.x, n.y, n.z, f.x, f.y, f.z, 0.0, 0.0]
+                })
+                .collect(),
             material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
             albedo: (scene.materials.iter())
@@ -120,8 +131,8 @@ impl Tables {
     /// repeat a live lane's primitive in lanes past the live rows).
     #[inline(always)]
     pub fn front_normals(&self, prims: &[usize; 8], o: Vec3x8, d: Vec3x8, t: f32x8) -> Vec3x8 {
-        let of_prim = |c: usize| gather(prims, |p| self.normals[c].get(p).copied().unwrap_or(0.0));
-        let n = V3::new(of_prim(0), of_prim(1), of_prim(2));
+        let [nx, ny, nz, ..] = self.rows_8(prims);
+        let n = V3::new(nx, ny, nz);
         if self.sphere_center.is_empty() {
             return n;
         }
@@ -130,6 +141,22 @@ impl Tables {
             let p = prims[l];
             (p >= self.first_sphere).then(|| self.front_normal(p, o[l], d[l], t[l]))
         })
+    }
+
+    /// The [`rows`](Self::rows) of eight primitives, as eight columns.
+    #[inline(always)]
+    fn rows_8(&self, prims: &[usize; 8]) -> [f32x8; 8] {
+        let row = |l: usize| f32x8::from(self.rows[prims[l]]);
+        f32x8::transpose([
+            row(0),
+            row(1),
+            row(2),
+            row(3),
+            row(4),
+            row(5),
+            row(6),
+            row(7),
+        ])
     }
 
     /// Whether some triangles have vertex normals.
@@ -181,14 +208,9 @@ impl Tables {
     /// per-triangle BRDF columns, the others through their materials.
     #[inline(always)]
     pub fn surfaces(&self, model: Model, tris: &[usize; 8]) -> Surface<f32x8> {
-        let of_tri = |col: &Vec<f32>| gather(tris, |t| col[t]);
         if model == Model::Diffuse {
-            let brdf = V3::new(
-                of_tri(&self.brdf[0]),
-                of_tri(&self.brdf[1]),
-                of_tri(&self.brdf[2]),
-            );
-            return Surface::diffuse(brdf);
+            let [_, _, _, r, g, b, ..] = self.rows_8(tris);
+            return Surface::diffuse(V3::new(r, g, b));
         }
         let mats = tris.map(|t| self.material_of[t] as usize);
         let of_mat = |col: &Vec<f32>| gather(&mats, |m| col[m]);
