@@ -3,6 +3,7 @@
 use crate::film::AovSample;
 use crate::math::Vec3x8;
 use crate::scene::{Aov, AovSet};
+use std::ops::Range;
 use wide::f32x8;
 
 /// In [`PathQueue::hit`]: the ray hit nothing.
@@ -48,6 +49,9 @@ pub struct PathQueue<P> {
     /// (albedo, normal or depth); `None` otherwise, and then they cost
     /// nothing.
     pub aov: Option<AovColumns>,
+    /// Working memory of [`PathQueue::compact`]: the rows its moves fill
+    /// and the rows they empty.
+    moves: [Vec<u32>; 2],
 }
 
 /// The AOVs each path records on its way ([`crate::integrator::aov`]):
@@ -138,6 +142,7 @@ impl<P: bytemuck::Pod> PathQueue<P> {
             t: col(),
             hit: vec![NO_HIT; rows],
             aov: None,
+            moves: [vec![0; rows], vec![0; rows]],
         }
     }
 
@@ -232,28 +237,48 @@ impl<P: Copy> PathQueue<P> {
         self.aov.as_ref().map_or(AovSample::NONE, |a| a.sample(i))
     }
 
-    /// Drop the [`RETIRED`] rows. Each hole is filled with the last live
-    /// row, so only retired rows cost a move; the order of the paths
+    /// Drop the [`RETIRED`] rows. With `live` rows staying, each retired
+    /// row below `live` is filled with a live row at or above it, in
+    /// order, so only retired rows cost a move. Both lists are written
+    /// without a branch per row (each row written at the list's end, which
+    /// moves on when the row belongs to it). The order of the paths
     /// changes, which changes nothing else (each path has its own numbers,
     /// and the film's sums are exact).
     pub fn compact(&mut self) {
-        let (mut i, mut end) = (0, self.len);
-        loop {
-            while i < end && self.hit[i] != RETIRED {
-                i += 1;
-            }
-            while i < end && self.hit[end - 1] == RETIRED {
-                end -= 1;
-            }
-            if i >= end {
-                break;
-            }
-            self.move_row(end - 1, i);
-            end -= 1;
-            i += 1;
+        let n = self.len;
+        let hit = &self.hit[..n];
+        let live = n - hit.iter().filter(|&&h| h == RETIRED).count();
+        let [to, from] = &mut self.moves;
+        let mut holes = 0;
+        for (r, &h) in hit[..live].iter().enumerate() {
+            to[holes] = r as u32;
+            holes += usize::from(h == RETIRED);
         }
-        self.len = end;
+        let mut lives = 0;
+        for (r, &h) in hit.iter().enumerate().skip(live) {
+            from[lives] = r as u32;
+            lives += usize::from(h != RETIRED);
+        }
+        debug_assert_eq!(holes, lives);
+        for k in 0..holes {
+            let (to, from) = (self.moves[0][k], self.moves[1][k]);
+            self.move_row(from as usize, to as usize);
+        }
+        self.len = live;
     }
+}
+
+/// The rows `r` of `rows` where `pred(r)`, in order, found eight at a
+/// time: a mask of eight tests (no branch per row), then its set bits.
+#[inline(always)]
+pub fn rows_where(rows: Range<usize>, pred: impl Fn(usize) -> bool) -> impl Iterator<Item = usize> {
+    let end = rows.end;
+    rows.step_by(8).flat_map(move |i| {
+        let mask = (i..(i + 8).min(end)).fold(0u8, |m, r| m | u8::from(pred(r)) << (r - i));
+        std::iter::successors(Some(mask), |m| Some(m & m.wrapping_sub(1)))
+            .take_while(|&m| m != 0)
+            .map(move |m| i + m.trailing_zeros() as usize)
+    })
 }
 
 /// Rows `i..i + 8` of a column (in bounds: columns are multiples of 8).

@@ -1,6 +1,6 @@
 //! Stage *shade*: add what each hit surface emits towards the ray.
 
-use super::queue::{NO_HIT, PathQueue};
+use super::queue::{NO_HIT, PathQueue, rows_where};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
@@ -22,16 +22,7 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
     let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
     // Most surfaces emit nothing: the rows that hit an emitter are found
     // eight at a time, without a branch per row.
-    let emitting = (0..n).step_by(8).flat_map(|i| {
-        let rows = i..(i + 8).min(n);
-        let mask = rows
-            .clone()
-            .fold(0u8, |m, r| m | u8::from(tables.emits(hit[r])) << (r - i));
-        std::iter::successors(Some(mask), |m| Some(m & m.wrapping_sub(1)))
-            .take_while(|&m| m != 0)
-            .map(move |m| i + m.trailing_zeros() as usize)
-    });
-    for i in emitting {
+    for i in rows_where(0..n, |r| tables.emits(hit[r])) {
         let tri = hit[i] as usize;
         let e = tables.emission[tables.material_of[tri] as usize];
         let d = V3::new(dx[i], dy[i], dz[i]);
