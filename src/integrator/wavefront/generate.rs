@@ -36,9 +36,16 @@ pub fn generate<S: Sampler>(
     for i in (0..n).step_by(8) {
         let lanes = (n - i).min(8);
         let [ux, uy] = sampler.next_2d_8(&mut sampler_col[i..i + lanes]);
+        // The group's pixels follow one another from its first: one
+        // division for the group, then steps along the row.
+        let first = pixel_col[i];
+        let (x0, y0) = (first % frame.width, first / frame.width);
         let xy = |l: usize| {
-            let pixel = pixel_col[i + l.min(lanes - 1)];
-            [(pixel % frame.width) as f32, (pixel / frame.width) as f32]
+            let (mut x, mut y) = (x0 + (pixel_col[i + l.min(lanes - 1)] - first), y0);
+            while x >= frame.width {
+                (x, y) = (x - frame.width, y + 1);
+            }
+            [x as f32, y as f32]
         };
         let xy: [[f32; 2]; 8] = std::array::from_fn(xy);
         let (x, y) = (xy.map(|p| p[0]), xy.map(|p| p[1]));
