@@ -120,9 +120,8 @@ fn random_spheres(n: usize) -> Vec<Sphere> {
 
 /// The sphere scene's hierarchy at each width this CPU runs.
 fn sphere_builds(tris: &[TriangleEdges], spheres: &[Sphere]) -> Vec<Bvh> {
-    [SimdWidth::W8, SimdWidth::W16]
+    SimdWidth::available()
         .into_iter()
-        .filter(|w| w.is_available())
         .map(|width| Bvh::build_prims(tris, spheres, &BvhOptions { width }))
         .collect()
 }
@@ -284,9 +283,8 @@ fn occlude_batch(bvh: &Bvh, rays: &[(Vec3, Vec3)], ends: &[f32], out: &mut [bool
 
 /// The hierarchy at each width this CPU runs.
 fn builds(tris: &[TriangleEdges]) -> Vec<Bvh> {
-    [SimdWidth::W8, SimdWidth::W16]
+    SimdWidth::available()
         .into_iter()
-        .filter(|w| w.is_available())
         .map(|width| Bvh::build_with(tris, &BvhOptions { width }))
         .collect()
 }

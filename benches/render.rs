@@ -15,14 +15,6 @@ use wavetrace::accel::simd::SimdWidth;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::Scene;
 
-/// The kernel widths this CPU runs.
-fn widths() -> Vec<SimdWidth> {
-    [SimdWidth::W8, SimdWidth::W16]
-        .into_iter()
-        .filter(|w| w.is_available())
-        .collect()
-}
-
 /// 1, 2 and all threads (each once).
 fn thread_counts() -> Vec<usize> {
     let all = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -33,7 +25,7 @@ fn thread_counts() -> Vec<usize> {
 
 fn render(c: &mut Criterion) {
     let scene = Scene::cornell();
-    let mut engines: Vec<(Engine, SimdWidth)> = widths()
+    let mut engines: Vec<(Engine, SimdWidth)> = SimdWidth::available()
         .into_iter()
         .map(|w| (Engine::Wavefront, w))
         .collect();
@@ -75,7 +67,7 @@ fn render(c: &mut Criterion) {
     let mut group = c.benchmark_group("render_sphere1m_rays");
     group.sample_size(10);
     let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    for simd in widths() {
+    for simd in SimdWidth::available() {
         for threads in [1, all] {
             let mut s = RenderSettings::for_scene(&scene).report();
             (s.width, s.height, s.spp, s.threads, s.max_depth) = (64, 64, 16, threads, 3);

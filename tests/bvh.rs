@@ -58,9 +58,8 @@ impl Rand {
 
 /// The hierarchy over `tris` at every width this CPU runs.
 fn builds(tris: &[TriangleEdges]) -> Vec<Bvh> {
-    [SimdWidth::W8, SimdWidth::W16]
+    SimdWidth::available()
         .into_iter()
-        .filter(|w| w.is_available())
         .map(|width| Bvh::build_with(tris, &BvhOptions { width }))
         .collect()
 }
@@ -464,9 +463,8 @@ fn stats_are_sane() {
 
 /// The hierarchy over `tris` and `spheres` at every width this CPU runs.
 fn builds_prims(tris: &[TriangleEdges], spheres: &[Sphere]) -> Vec<Bvh> {
-    [SimdWidth::W8, SimdWidth::W16]
+    SimdWidth::available()
         .into_iter()
-        .filter(|w| w.is_available())
         .map(|width| Bvh::build_prims(tris, spheres, &BvhOptions { width }))
         .collect()
 }

@@ -126,10 +126,7 @@ fn widths() -> Vec<SimdWidth> {
     if !SimdWidth::W16.is_available() {
         eprintln!("note: no AVX-512 on this CPU: 16 lanes are not checked");
     }
-    [SimdWidth::W8, SimdWidth::W16]
-        .into_iter()
-        .filter(|w| w.is_available())
-        .collect()
+    SimdWidth::available()
 }
 
 /// The ray against `spheres` through the packed kernel at every width:

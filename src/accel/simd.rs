@@ -43,6 +43,14 @@ impl SimdWidth {
         }
     }
 
+    /// The widths this CPU runs, narrowest first.
+    pub fn available() -> Vec<SimdWidth> {
+        [SimdWidth::W8, SimdWidth::W16]
+            .into_iter()
+            .filter(|w| w.is_available())
+            .collect()
+    }
+
     /// Whether this CPU runs this width.
     pub fn is_available(self) -> bool {
         match self {

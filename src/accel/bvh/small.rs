@@ -421,13 +421,6 @@ mod tests {
     use crate::accel::triangle::NO_PRIM;
     use crate::scene::Scene;
 
-    fn widths() -> Vec<SimdWidth> {
-        [SimdWidth::W8, SimdWidth::W16]
-            .into_iter()
-            .filter(|w| w.is_available())
-            .collect()
-    }
-
     fn cornell() -> Vec<TriangleEdges> {
         Scene::cornell()
             .triangles
@@ -475,7 +468,7 @@ mod tests {
         let (mut built, mut checked, mut split) = (0, 0, 0);
         for (tris, spheres) in &scenes {
             let rays = test_rays(tris, &mut u);
-            for width in widths() {
+            for width in SimdWidth::available() {
                 for bvh in candidates(tris, spheres, width) {
                     built += 1;
                     split += usize::from(bvh.first_pack_count() > 0);
@@ -543,7 +536,7 @@ mod tests {
             let o = [column(&|r| r.0.x), column(&|r| r.0.y), column(&|r| r.0.z)];
             let d = [column(&|r| r.1.x), column(&|r| r.1.y), column(&|r| r.1.z)];
             let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
-            for width in widths() {
+            for width in SimdWidth::available() {
                 let params = BuildParams::for_lanes(width.lanes());
                 let mut bvh = Bvh::assemble(tris, &[], &[], width, &params);
                 for (first, g) in packet_candidates(tris) {
@@ -583,7 +576,7 @@ mod tests {
     #[test]
     fn cornell_packets_test_the_blocks_behind_boxes() {
         let cornell = cornell();
-        for width in widths() {
+        for width in SimdWidth::available() {
             let bvh = build(&cornell, &[], width);
             assert_eq!(bvh.packet_plan(), Some((12, 2)), "{} lanes", width.lanes());
         }

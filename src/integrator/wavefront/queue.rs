@@ -3,7 +3,6 @@
 use crate::film::AovSample;
 use crate::math::Vec3x8;
 use crate::scene::{Aov, AovSet};
-use std::ops::Range;
 use wide::f32x8;
 
 /// In [`PathQueue::hit`]: the ray hit nothing.
@@ -268,17 +267,36 @@ impl<P: Copy> PathQueue<P> {
     }
 }
 
-/// The rows `r` of `rows` where `pred(r)`, in order, found eight at a
-/// time: a mask of eight tests (no branch per row), then its set bits.
+/// The rows `r` of a column where `pred(column[r])`, in order, found eight
+/// at a time: a mask of eight tests (no branch per row), then its set
+/// bits.
 #[inline(always)]
-pub fn rows_where(rows: Range<usize>, pred: impl Fn(usize) -> bool) -> impl Iterator<Item = usize> {
-    let end = rows.end;
-    rows.step_by(8).flat_map(move |i| {
-        let mask = (i..(i + 8).min(end)).fold(0u8, |m, r| m | u8::from(pred(r)) << (r - i));
-        std::iter::successors(Some(mask), |m| Some(m & m.wrapping_sub(1)))
-            .take_while(|&m| m != 0)
-            .map(move |m| i + m.trailing_zeros() as usize)
-    })
+pub fn rows_where<T>(column: &[T], pred: impl Fn(&T) -> bool) -> impl Iterator<Item = usize> {
+    let groups = column.chunks(8).enumerate();
+    groups.flat_map(move |(g, rows)| SetBits(mask_8(rows, &pred)).map(move |l| 8 * g + l))
+}
+
+/// The tests of at most eight rows as a mask: bit `l` is `pred(&rows[l])`.
+#[inline(always)]
+pub fn mask_8<T>(rows: &[T], pred: impl Fn(&T) -> bool) -> u8 {
+    (rows.iter().enumerate()).fold(0, |m, (l, x)| m | u8::from(pred(x)) << l)
+}
+
+/// The set bits of a mask, lowest first.
+pub struct SetBits(pub u8);
+
+impl Iterator for SetBits {
+    type Item = usize;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        if self.0 == 0 {
+            return None;
+        }
+        let l = self.0.trailing_zeros() as usize;
+        self.0 &= self.0 - 1;
+        Some(l)
+    }
 }
 
 /// Rows `i..i + 8` of a column (in bounds: columns are multiples of 8).

@@ -1,6 +1,6 @@
 //! Stage *retire*: finished paths go into the film and leave the queue.
 
-use super::queue::{NO_HIT, PathQueue, RETIRED, load8};
+use super::queue::{NO_HIT, PathQueue, RETIRED, SetBits, load8, mask_8};
 use crate::film::{accumulate_fixed, to_fixed_8};
 use crate::integrator::TileJob;
 use crate::integrator::nee::{Estimator, survival};
@@ -81,14 +81,11 @@ fn add<P>(queue: &PathQueue<P>, job: &mut TileJob, all: bool) -> u64 {
     let mut invalid = 0;
     let n = queue.len();
     for i in (0..n).step_by(8) {
-        let lanes = (n - i).min(8);
-        let hit = &queue.hit[i..i + lanes];
+        let hit = &queue.hit[i..(i + 8).min(n)];
         let done = if all {
-            u8::MAX >> (8 - lanes)
+            u8::MAX >> (8 - hit.len())
         } else {
-            hit.iter()
-                .enumerate()
-                .fold(0u8, |m, (l, &h)| m | ((h == RETIRED) as u8) << l)
+            mask_8(hit, |&h| h == RETIRED)
         };
         if done == 0 {
             continue;
@@ -96,10 +93,7 @@ fn add<P>(queue: &PathQueue<P>, job: &mut TileJob, all: bool) -> u64 {
         let [r, g, b] = &queue.radiance;
         let (fixed, valid) = to_fixed_8([load8(r, i), load8(g, i), load8(b, i)]);
         invalid += (done & !valid).count_ones() as u64;
-        let mut add = done & valid;
-        while add != 0 {
-            let l = add.trailing_zeros() as usize;
-            add &= add - 1;
+        for l in SetBits(done & valid) {
             let q = [fixed[0][l], fixed[1][l], fixed[2][l]];
             accumulate_fixed(job.sum_of(queue.pixel[i + l]), q);
         }

@@ -22,7 +22,7 @@ pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, esti
     let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
     // Most surfaces emit nothing: the rows that hit an emitter are found
     // eight at a time, without a branch per row.
-    for i in rows_where(0..n, |r| tables.emits(hit[r])) {
+    for i in rows_where(hit, |&h| tables.emits(h)) {
         let tri = hit[i] as usize;
         let e = tables.emission[tables.material_of[tri] as usize];
         let d = V3::new(dx[i], dy[i], dz[i]);
