@@ -266,6 +266,8 @@ fn sphere_in_box_100k() {
     assert!(tris.len() > 100_000);
     // The box's triangles dwarf the sphere's: they go in front of the tree
     // (one or two packs, by width), and the hits stay brute force's.
+    // Batches of rays as columns test them in ray packets, and walk the
+    // tree for the rays that enter its box.
     for bvh in builds(&tris) {
         let lanes = bvh.simd_width().lanes();
         assert_eq!(
@@ -273,8 +275,88 @@ fn sphere_in_box_100k() {
             32usize.div_ceil(lanes),
             "{lanes} lanes"
         );
+        assert!(bvh.packet_plan().is_some(), "{lanes} lanes");
     }
     check(&tris, 1500, 500, 4);
+}
+
+/// Columns of rays through `bvh`: each one's `(primitive, t bits)`.
+fn column_hits(bvh: &Bvh, rays: &[(Vec3, Vec3)], t_min: f32) -> Vec<Option<(u32, u32)>> {
+    let col = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| rays.iter().map(f).collect::<Vec<f32>>();
+    let o = [col(&|r| r.0.x), col(&|r| r.0.y), col(&|r| r.0.z)];
+    let d = [col(&|r| r.1.x), col(&|r| r.1.y), col(&|r| r.1.z)];
+    let (mut t, mut prim) = (vec![0.0; rays.len()], vec![0; rays.len()]);
+    let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
+    bvh.closest_hits_columns(o, d, (t_min, f32::INFINITY), &mut t, &mut prim);
+    let hit = |(&p, &t): (&u32, &f32)| (p != u32::MAX).then_some((p, t.to_bits()));
+    prim.iter().zip(&t).map(hit).collect()
+}
+
+#[test]
+fn ties_between_the_packets_and_the_tree_behind_them() {
+    // A floor of two large triangles (in front of the tree, tested in ray
+    // packets) and, in its plane, a grid of small right triangles (the
+    // tree) over part of it. Every edge is a power of two, so both give
+    // a ray the same `t`, bit for bit: the lower index must win, whether
+    // that is the floor's (packets) or a small one's (tree), and the walk
+    // behind the packets must find the small ones at exactly the packets'
+    // `t`. Walls of more large triangles make the room.
+    let big = |lo: Vec3, a: Vec3, b: Vec3| {
+        [
+            TriangleEdges::from_edges(lo, a, b),
+            TriangleEdges::from_edges(lo + a + b, -a, -b),
+        ]
+    };
+    let (x, z) = (Vec3::X * 2.0, Vec3::Z * 2.0);
+    let room: Vec<TriangleEdges> = [
+        big(Vec3::new(-1.0, 0.0, -1.0), x, z),
+        big(Vec3::new(-1.0, 2.0, -1.0), x, z),
+        big(Vec3::new(-1.0, 0.0, 1.0), x, Vec3::Y * 2.0),
+        big(Vec3::new(-1.0, 0.0, -1.0), z, Vec3::Y * 2.0),
+    ]
+    .concat();
+    let small: Vec<TriangleEdges> = (0..32 * 32)
+        .map(|k| {
+            let corner = Vec3::new(
+                -0.5 + (k % 32) as f32 / 32.0,
+                0.0,
+                -0.5 + (k / 32) as f32 / 32.0,
+            );
+            TriangleEdges::from_edges(corner, Vec3::X / 32.0, Vec3::Z / 32.0)
+        })
+        .collect();
+    let mut r = Rand::new(31);
+    let rays: Vec<(Vec3, Vec3)> = (0..20_000)
+        .map(|_| {
+            let o = r.point_in(Vec3::new(-0.9, 0.1, -0.9), Vec3::new(0.9, 1.9, 0.9));
+            let target = r.point_in(Vec3::new(-0.7, 0.0, -0.7), Vec3::new(0.7, 0.0, 0.7));
+            (o, (target - o).normalize())
+        })
+        .collect();
+    // Rays on which the room's closest hit and the small triangles' are
+    // at the same `t`.
+    let t_of = |tris: &[TriangleEdges], (o, d): (Vec3, Vec3)| {
+        closest_hit_brute_force(tris, o, d, 1e-4, f32::INFINITY).map(|h| h.t.to_bits())
+    };
+    let ties = rays
+        .iter()
+        .filter(|&&r| t_of(&small, r).is_some_and(|t| Some(t) == t_of(&room, r)))
+        .count();
+    assert!(ties > 5_000, "{ties} ties of 20000");
+    for room_first in [true, false] {
+        let tris = if room_first {
+            [&room[..], &small[..]].concat()
+        } else {
+            [&small[..], &room[..]].concat()
+        };
+        for bvh in builds(&tris) {
+            assert!(bvh.packet_plan().is_some(), "the room goes in packets");
+            for (i, (&(o, d), got)) in rays.iter().zip(column_hits(&bvh, &rays, 1e-4)).enumerate() {
+                let want = key(closest_hit_brute_force(&tris, o, d, 1e-4, f32::INFINITY));
+                assert_eq!(got, want, "{:?} ray {i}: o={o:?} d={d:?}", bvh.simd_width());
+            }
+        }
+    }
 }
 
 #[test]

@@ -324,7 +324,19 @@ impl Bvh {
                 root_node: !first.is_empty(),
                 ..BuildParams::for_lanes(width.lanes())
             };
-            Self::assemble(tris, spheres, &first, width, &params)
+            let mut bvh = Self::assemble(tris, spheres, &first, width, &params);
+            // The wavefront's batches test those in ray packets, where that
+            // counts cheaper, and walk the tree only for the rays that
+            // reach its box.
+            let finite = || tris.iter().all(TriangleEdges::is_finite);
+            if !first.is_empty()
+                && spheres.is_empty()
+                && finite()
+                && let Some(plan) = small::front_plan(tris, &first, width)
+            {
+                bvh.set_packet_plan(plan);
+            }
+            bvh
         };
         bvh.build_seconds = started.elapsed().as_secs_f64();
         bvh
@@ -410,7 +422,7 @@ impl Bvh {
     #[inline(always)]
     fn one<K: QueryKind>(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> K::Output {
         match self.width {
-            SimdWidth::W8 => walk::walk_one::<f32x8, K::Q<f32x8>>(self, o, d, t_min, t_max),
+            SimdWidth::W8 => walk::walk_one::<f32x8, K::Q<f32x8>>(self, (o, d), t_min, t_max, true),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: a tree is 16 wide only when the CPU has AVX-512
             // (`build_with` checks `SimdWidth::is_available`).
@@ -420,20 +432,22 @@ impl Bvh {
         }
     }
 
-    /// Rays `0..n` through the walk, with query `K`, at this tree's width.
+    /// Rays `0..n` through the walk, with query `K`, at this tree's width
+    /// (`front`: as [`walk::walk_many`]'s).
     #[inline(always)]
     fn many<K: QueryKind>(
         &self,
         n: usize,
         ray: impl Fn(usize) -> (Vec3, Vec3, f32),
         t_min: f32,
+        front: bool,
         out: impl FnMut(usize, K::Output),
     ) {
         match self.width {
-            SimdWidth::W8 => walk::walk_many::<f32x8, K::Q<f32x8>>(self, n, ray, t_min, out),
+            SimdWidth::W8 => walk::walk_many::<f32x8, K::Q<f32x8>>(self, n, ray, t_min, front, out),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `one`.
-            SimdWidth::W16 => unsafe { many16::<K>(self, n, ray, t_min, out) },
+            SimdWidth::W16 => unsafe { many16::<K>(self, n, ray, t_min, front, out) },
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
@@ -514,6 +528,7 @@ impl Bvh {
                 (o, d, t_max)
             },
             t_min,
+            true,
             #[inline(always)]
             |i, (t, prim)| out(i, t, prim),
         );
@@ -527,7 +542,10 @@ impl Bvh {
     /// In a small scene of triangles (the Cornell box) the rays go 8 or 16
     /// at a time, one per lane, each triangle broadcast to every lane, the
     /// small triangles behind boxes (`packet`): no per-ray set-up or
-    /// reduction.
+    /// reduction. In a big scene of triangles whose largest ones are in
+    /// front of the tree (`sphere-1m`: the room), those go in packets the
+    /// same way, and only the rays that enter the tree's box before their
+    /// hit among them walk the tree.
     ///
     /// # Panics
     ///
@@ -564,14 +582,58 @@ impl Bvh {
             return;
         }
         let plan = &self.packets;
+        let range = (t_min, t_max);
+        let mut behind = Vec::new();
         match self.width {
-            SimdWidth::W8 => packet::closest_hits::<f32x8>(plan, (o, d), (t_min, t_max), t, prim),
+            SimdWidth::W8 => {
+                packet::closest_hits::<f32x8>(plan, (o, d), range, t, prim, &mut behind)
+            }
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `one`.
-            SimdWidth::W16 => unsafe { packets16(plan, (o, d), (t_min, t_max), t, prim) },
+            SimdWidth::W16 => unsafe { packets16(plan, (o, d), range, t, prim, &mut behind) },
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
+        if behind.is_empty() {
+            return;
+        }
+        // The tree behind the packets' triangles, for the rays that enter
+        // its box before their hit so far: a walk up to and including that
+        // hit's t (a tree triangle at the same t with a lower index wins
+        // the tie), without the triangles in front of the tree (the
+        // packets' own).
+        let limit: Vec<f32> = behind
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
+                if prim[i] == NO_PRIM {
+                    t_max
+                } else {
+                    t[i].next_up()
+                }
+            })
+            .collect();
+        self.many::<ClosestKind>(
+            behind.len(),
+            #[inline(always)]
+            |k| {
+                let i = behind[k] as usize;
+                (
+                    Vec3::new(o[0][i], o[1][i], o[2][i]),
+                    Vec3::new(d[0][i], d[1][i], d[2][i]),
+                    limit[k],
+                )
+            },
+            t_min,
+            false,
+            #[inline(always)]
+            |k, (tk, pk)| {
+                let i = behind[k] as usize;
+                if pk != NO_PRIM && (tk < t[i] || pk < prim[i]) {
+                    (t[i], prim[i]) = (tk, pk);
+                }
+            },
+        );
     }
 
     /// [`Bvh::occluded`] for many segments: ray `i` is `rays[i]` up to
@@ -609,7 +671,7 @@ impl Bvh {
         t_min: f32,
         out: impl FnMut(usize, bool),
     ) {
-        self.many::<AnyHitKind>(n, ray, t_min, out);
+        self.many::<AnyHitKind>(n, ray, t_min, true, out);
     }
 
     /// [`Bvh::closest_hit`] (`occlusion = false`) or [`Bvh::occluded`]
@@ -695,8 +757,9 @@ impl Bvh {
     }
 
     /// Where [`Bvh::closest_hits_columns`] tests ray packets (a small
-    /// scene of triangles): how many triangles every ray tests, and how
-    /// many groups behind boxes follow. `None` where it walks the tree.
+    /// scene of triangles, or a big one's largest triangles in front of its
+    /// tree): how many triangles every ray tests, and how many groups
+    /// behind boxes follow. `None` where it walks the tree alone.
     pub fn packet_plan(&self) -> Option<(usize, usize)> {
         (!self.packets.is_empty()).then(|| (self.packets.first_count(), self.packets.group_count()))
     }
@@ -739,15 +802,16 @@ fn packets16(
     range: (f32, f32),
     t: &mut [f32],
     prim: &mut [u32],
+    behind: &mut Vec<u32>,
 ) {
-    packet::closest_hits::<F32x16>(plan, rays, range, t, prim)
+    packet::closest_hits::<F32x16>(plan, rays, range, t, prim, behind)
 }
 
 /// [`Bvh::one`] at 16 lanes, compiled with AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
 fn one16<K: QueryKind>(bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> K::Output {
-    walk::walk_one::<F32x16, K::Q<F32x16>>(bvh, o, d, t_min, t_max)
+    walk::walk_one::<F32x16, K::Q<F32x16>>(bvh, (o, d), t_min, t_max, true)
 }
 
 /// [`Bvh::many`] at 16 lanes, compiled with AVX-512.
@@ -758,7 +822,8 @@ fn many16<K: QueryKind>(
     n: usize,
     ray: impl Fn(usize) -> (Vec3, Vec3, f32),
     t_min: f32,
+    front: bool,
     out: impl FnMut(usize, K::Output),
 ) {
-    walk::walk_many::<F32x16, K::Q<F32x16>>(bvh, n, ray, t_min, out)
+    walk::walk_many::<F32x16, K::Q<F32x16>>(bvh, n, ray, t_min, front, out)
 }

@@ -16,7 +16,11 @@
 //!   the ones that enter it before their closest hit so far are gathered
 //!   into packets of their own (a *stream*: the lanes stay full however
 //!   few rays enter), tested against the group's triangles, and their
-//!   hits scattered back.
+//!   hits scattered back;
+//! - in a big scene whose largest triangles are the plan's (`sphere-1m`:
+//!   the room and the blocks), the *tree* of the rest behind its box:
+//!   the rays that enter that box before their hit so far are listed, and
+//!   the caller walks the tree for them alone.
 //!
 //! Every lane does exactly what [`closest_hit_brute_force`] does for its
 //! ray, on the triangles it tests: [`moller_trumbore`] (the same generic
@@ -54,6 +58,9 @@ pub(crate) struct Plan {
     first: usize,
     /// The groups, in the order they are tested.
     groups: Vec<Group>,
+    /// The box of the tree behind the plan (no triangles of its own here),
+    /// where the plan covers only the triangles in front of a tree.
+    tree: Option<Group>,
 }
 
 /// Triangles behind one box.
@@ -78,6 +85,7 @@ impl Plan {
             index: first.to_vec(),
             first: first.len(),
             groups: Vec::with_capacity(groups.len()),
+            tree: None,
         };
         assert!(groups.len() <= MAX_GROUPS, "at most {MAX_GROUPS} groups");
         for (b, g) in groups.iter().filter(|(_, g)| !g.is_empty()) {
@@ -92,6 +100,25 @@ impl Plan {
             });
         }
         plan
+    }
+
+    /// The plan, with the rays that enter `b` (the padded box of a tree
+    /// over the scene's other triangles) before their hit so far listed
+    /// by [`closest_hits`] for the caller's walk.
+    pub fn with_tree_box(mut self, b: &Aabb) -> Plan {
+        let end = self.tris.len();
+        self.tree = Some(Group {
+            lo: b.lo.to_array(),
+            hi: b.hi.to_array(),
+            start: end,
+            end,
+        });
+        self
+    }
+
+    /// Whether a tree lies behind the plan (see [`Plan::with_tree_box`]).
+    pub fn has_tree(&self) -> bool {
+        self.tree.is_some()
     }
 
     /// Whether there is a plan (a scene without one has no triangles here).
@@ -113,7 +140,9 @@ impl Plan {
 /// Rays given as columns (`o[axis][i]`, `d[axis][i]`), `R::LANES` at a
 /// time, through `plan`: ray `i`'s closest hit with `t_min < t < t_max`
 /// into `t[i]` and `prim[i]` ([`NO_PRIM`](crate::accel::triangle::NO_PRIM)
-/// where none; then `t[i]` is `t_max`).
+/// where none; then `t[i]` is `t_max`), among the plan's triangles.
+/// Where a tree lies behind the plan, the rays that enter its box before
+/// that hit are appended to `behind` (increasing indices).
 #[inline(always)]
 pub(crate) fn closest_hits<R: Lanes>(
     plan: &Plan,
@@ -121,11 +150,13 @@ pub(crate) fn closest_hits<R: Lanes>(
     (t_min, t_max): (f32, f32),
     t: &mut [f32],
     prim: &mut [u32],
+    behind: &mut Vec<u32>,
 ) {
-    // Per group, the rays of the block that enter its box (with room for
-    // a whole packet's indices past the last).
-    let mut entering = [[0u32; BLOCK + 16]; MAX_GROUPS];
-    let entering = &mut entering[..plan.groups.len()];
+    // Per group (and the tree), the rays of the block that enter its box
+    // (with room for a whole packet's indices past the last).
+    let mut entering = [[0u32; BLOCK + 16]; MAX_GROUPS + 1];
+    let boxes = plan.groups.len() + usize::from(plan.has_tree());
+    let entering = &mut entering[..boxes];
     for b in (0..t.len()).step_by(BLOCK) {
         let e = (b + BLOCK).min(t.len());
         let o = o.map(|c| &c[b..e]);
@@ -135,12 +166,16 @@ pub(crate) fn closest_hits<R: Lanes>(
         for ((g, which), n) in plan.groups.iter().zip(&*entering).zip(counts) {
             group_hits::<R>(plan, g, (o, d), t_min, &which[..n], t, prim);
         }
+        if plan.has_tree() {
+            let k = plan.groups.len();
+            behind.extend(entering[k][..counts[k]].iter().map(|&i| i + b as u32));
+        }
     }
 }
 
-/// The first triangles, for every ray; then each group's box, for every
-/// ray: the rays that enter it before their hit so far go into
-/// `entering[group]`, and their count is returned.
+/// The first triangles, for every ray; then each group's box (and the
+/// tree's, last), for every ray: the rays that enter it before their hit
+/// so far go into `entering[group]`, and their count is returned.
 #[inline(always)]
 fn first_hits<R: Lanes>(
     plan: &Plan,
@@ -149,8 +184,9 @@ fn first_hits<R: Lanes>(
     t: &mut [f32],
     prim: &mut [u32],
     entering: &mut [[u32; BLOCK + 16]],
-) -> [usize; MAX_GROUPS] {
-    let mut counts = [0; MAX_GROUPS];
+) -> [usize; MAX_GROUPS + 1] {
+    let mut counts = [0; MAX_GROUPS + 1];
+    let boxes = || plan.groups.iter().chain(&plan.tree);
     let first = &plan.tris[..plan.first];
     for start in (0..t.len()).step_by(R::LANES) {
         let end = (start + R::LANES).min(t.len());
@@ -169,7 +205,7 @@ fn first_hits<R: Lanes>(
         }
         best.t.write_to(&mut t[start..end]);
         R::index_write_to(best.index, &mut prim[start..end]);
-        if plan.groups.is_empty() {
+        if entering.is_empty() {
             continue;
         }
         // The slab test of the tree's nodes (`Node8::intersect`), with
@@ -186,7 +222,7 @@ fn first_hits<R: Lanes>(
         let o_inv = [ray_o.x * inv[0], ray_o.y * inv[1], ray_o.z * inv[2]];
         // Lanes past the end hold the zero ray: not rays.
         let real = (1u32 << (end - start)) - 1;
-        for ((g, out), n) in plan.groups.iter().zip(&mut *entering).zip(&mut counts) {
+        for ((g, out), n) in boxes().zip(&mut *entering).zip(&mut counts) {
             let (mut near, mut far) = (R::splat(t_min), best.t);
             for a in 0..3 {
                 let t0 = R::splat(g.lo[a]).mul_add(inv[a], -o_inv[a]);

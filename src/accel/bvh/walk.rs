@@ -368,18 +368,19 @@ fn nearest(t_near: f32x8, live: u32) -> u32 {
     (t.simd_eq(f32x8::splat(m)).to_bitmask() & live).trailing_zeros()
 }
 
-/// One ray through the tree, its state in locals.
+/// One ray through the tree, its state in locals. `front`: test the
+/// primitives in front of the tree too (false where the caller has).
 #[inline(always)]
 pub(crate) fn walk_one<R: LanesIn, Q: Query<R>>(
     bvh: &Bvh,
-    o: Vec3,
-    d: Vec3,
+    (o, d): (Vec3, Vec3),
     t_min: f32,
     t_max: f32,
+    front: bool,
 ) -> Q::Output {
     let r = PackRay::new(o, d, t_min);
     let mut q = Q::new(t_max);
-    if start(bvh, &r, &mut q) {
+    if front && start(bvh, &r, &mut q) {
         return q.output();
     }
     let root = bvh.root;
@@ -426,7 +427,7 @@ struct Walk<R: Lanes, Q> {
 
 impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
     #[inline(always)]
-    fn new(bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Self {
+    fn new(bvh: &Bvh, o: Vec3, d: Vec3, (t_min, t_max): (f32, f32), front: bool) -> Self {
         let mut w = Walk {
             r: PackRay::new(o, d, t_min),
             nr: NodeRay::new(o, d, t_min),
@@ -435,7 +436,7 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
             cur: bvh.root,
             group: Group::NONE,
         };
-        if start(bvh, &w.r, &mut w.q) {
+        if front && start(bvh, &w.r, &mut w.q) {
             w.cur = Child::EMPTY;
         }
         w
@@ -443,14 +444,14 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
 
     /// Start over with another ray, reusing the stack's memory in place.
     #[inline(always)]
-    fn reset(&mut self, bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, t_max: f32) {
+    fn reset(&mut self, bvh: &Bvh, o: Vec3, d: Vec3, (t_min, t_max): (f32, f32), front: bool) {
         self.r = PackRay::new(o, d, t_min);
         self.nr = NodeRay::new(o, d, t_min);
         self.q = Q::new(t_max);
         self.stack.len = 0;
         self.cur = bvh.root;
         self.group = Group::NONE;
-        if start(bvh, &self.r, &mut self.q) {
+        if front && start(bvh, &self.r, &mut self.q) {
             self.cur = Child::EMPTY;
         }
     }
@@ -491,7 +492,9 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
 }
 
 /// Rays `0..n` through the tree: `ray(i)` gives ray `i`'s origin, direction
-/// and `t_max`; `out(i, answer)` takes its answer (in any order).
+/// and `t_max`; `out(i, answer)` takes its answer (in any order). `front`:
+/// test the primitives in front of the tree too (false where the caller
+/// has: the ray packets of `packet`).
 ///
 /// On a tree bigger than the caches the rays go [`BATCH`] at a time,
 /// interleaved: each step of one ray prefetches the node or leaf it will
@@ -503,12 +506,13 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
     n: usize,
     ray: impl Fn(usize) -> (Vec3, Vec3, f32),
     t_min: f32,
+    front: bool,
     mut out: impl FnMut(usize, Q::Output),
 ) {
     if !bvh.interleave || !bvh.root.is_node() {
         for i in 0..n {
             let (o, d, t_max) = ray(i);
-            out(i, walk_one::<R, Q>(bvh, o, d, t_min, t_max));
+            out(i, walk_one::<R, Q>(bvh, (o, d), t_min, t_max, front));
         }
         return;
     }
@@ -518,7 +522,7 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
     for (index, slot) in slots.iter_mut() {
         if next < n {
             let (o, d, t_max) = ray(next);
-            *slot = Some(Walk::new(bvh, o, d, t_min, t_max));
+            *slot = Some(Walk::new(bvh, o, d, (t_min, t_max), front));
             *index = next;
             next += 1;
             live += 1;
@@ -534,7 +538,7 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
             out(*index, w.q.output());
             if next < n {
                 let (o, d, t_max) = ray(next);
-                w.reset(bvh, o, d, t_min, t_max);
+                w.reset(bvh, o, d, (t_min, t_max), front);
                 w.prefetch(bvh);
                 *index = next;
                 next += 1;
