@@ -6,7 +6,7 @@
 
 use super::node::{Child, Node8, NodeRay};
 use super::{Bvh, LanesIn};
-use crate::accel::simd::Lanes;
+use crate::accel::simd::{Lanes, prefetch_lines};
 use crate::accel::sphere::SpherePack;
 #[cfg(doc)]
 use crate::accel::triangle::NO_PRIM;
@@ -548,25 +548,6 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
             }
         }
     }
-}
-
-/// Prefetch `lines` cache lines from `p` on (into all cache levels).
-#[inline(always)]
-fn prefetch_lines<T>(p: &T, lines: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let base = (p as *const T).cast::<i8>();
-        for k in 0..lines {
-            // SAFETY: a prefetch is only a hint: it never faults and has no
-            // effect on program state, whatever the address (and these
-            // lines lie within the `T` at `p` and what follows it in the
-            // same Vec). Measured: 2-3x faster batches on 1M triangles.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(64 * k)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (p, lines);
 }
 
 /// The traversal stack: groups of children still to visit, one per level

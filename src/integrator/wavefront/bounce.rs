@@ -45,6 +45,9 @@ pub fn scatter<S: Sampler>(
 ) {
     let report = estimator.integrator == Integrator::Report;
     for i in rows.clone().step_by(8) {
+        // Two groups ahead: their rows are on their way while these bounce.
+        let ahead = (i + 16).min(rows.end)..(i + 24).min(rows.end);
+        tables.prefetch_rows(&queue.hit, ahead);
         let lanes = (rows.end - i).min(8);
         // Lanes past the last row of the range compute garbage that is not
         // stored (the next rows belong to another model's range); they

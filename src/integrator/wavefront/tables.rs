@@ -2,12 +2,17 @@
 //! columns, gathered 8 lanes at a time. Primitives are numbered as hits
 //! number them: the triangles, then the spheres.
 
+use crate::accel::simd::prefetch_lines;
 use crate::accel::sphere::hit_normal;
 use crate::integrator::bsdf::Surface;
 use crate::math::{V3, Vec3x8};
 use crate::scene::{Material, Model, Scene, interpolate_normal};
 use std::f32::consts::PI;
 use wide::f32x8;
+
+/// Tables of rows above this many bytes are [`Tables::prefetch_rows`]'s
+/// business (they outgrow the L2 cache).
+const BIG_TABLE: usize = 256 << 10;
 
 /// Shading data, one column per field.
 pub struct Tables {
@@ -25,12 +30,21 @@ pub struct Tables {
     pub emission: Vec<[f32; 3]>,
     /// Per primitive, what a bounce reads of it, in one row of eight
     /// (front normal x, y, z — zero for spheres —, the diffuse BRDF
-    /// `reflectance / π` of its material, R, G, B, and two zeros): eight rows load as eight vectors and transpose into
-    /// columns ([`Tables::rows_8`]), cheaper than 48 loads lane by lane.
-    rows: Vec<[f32; 8]>,
-    /// Whether each primitive's material emits, and one more entry
-    /// (false) that every miss reads ([`Tables::emits`]).
+    /// `reflectance / π` of its material, R, G, B, and two zeros): eight
+    /// rows load as eight vectors and transpose into columns
+    /// ([`Tables::rows_8`]), cheaper than 48 loads lane by lane. A row is
+    /// aligned to half a cache line, so it lies in one.
+    rows: Vec<f32x8>,
+    /// The rows are too many for the caches: a bounce asks for them ahead
+    /// ([`Tables::prefetch_rows`]).
+    big: bool,
+    /// Whether each primitive's material emits, from the first emitting
+    /// primitive (`emitting_first`) to the last, and one more entry (false)
+    /// that every other primitive and every miss reads
+    /// ([`Tables::emits`]): in a big scene lit by a few triangles, a table
+    /// that stays in the L1 cache.
     emitting: Vec<bool>,
+    emitting_first: u32,
     /// Scattering model of each material.
     pub model: Vec<Model>,
     /// Each material's colour as [`Surface::tint`] takes it, per RGB
@@ -57,6 +71,16 @@ impl Tables {
             .chain(scene.spheres.iter().map(|s| s.material))
             .collect();
         let brdf = |m: &u32| scene.materials[*m as usize].reflectance / PI;
+        let emits: Vec<bool> = (materials.iter())
+            .map(|&m| scene.materials[m as usize].emission != glam::Vec3::ZERO)
+            .collect();
+        let span = match (
+            emits.iter().position(|&e| e),
+            emits.iter().rposition(|&e| e),
+        ) {
+            (Some(a), Some(b)) => a..b + 1,
+            _ => 0..0,
+        };
         let tint = |m: &Material| match m.model {
             Model::Diffuse => m.reflectance / PI,
             Model::Mirror | Model::Metal => m.reflectance,
@@ -72,10 +96,8 @@ impl Tables {
                 .map(|m| m.emission.to_array())
                 .collect(),
             model: scene.materials.iter().map(|m| m.model).collect(),
-            emitting: (materials.iter())
-                .map(|&m| scene.materials[m as usize].emission != glam::Vec3::ZERO)
-                .chain([false])
-                .collect(),
+            emitting: emits[span.clone()].iter().copied().chain([false]).collect(),
+            emitting_first: span.start as u32,
             rows: (materials.iter().enumerate())
                 .map(|(p, m)| {
                     let n = scene
@@ -83,9 +105,10 @@ impl Tables {
                         .get(p)
                         .map_or(glam::Vec3::ZERO, |t| t.normal);
                     let f = brdf(m);
-                    [n.x, n.y, n.z, f.x, f.y, f.z, 0.0, 0.0]
+                    f32x8::new([n.x, n.y, n.z, f.x, f.y, f.z, 0.0, 0.0])
                 })
                 .collect(),
+            big: materials.len() * size_of::<f32x8>() > BIG_TABLE,
             material_of: materials,
             tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
             albedo: (scene.materials.iter())
@@ -109,7 +132,10 @@ impl Tables {
     /// lookup without a branch.
     #[inline(always)]
     pub fn emits(&self, hit: u32) -> bool {
-        self.emitting[(hit as usize).min(self.emitting.len() - 1)]
+        // Below the span, the difference wraps to a huge index, as a miss
+        // (`NO_PRIM`) does: both read the last entry.
+        let k = hit.wrapping_sub(self.emitting_first) as usize;
+        self.emitting[k.min(self.emitting.len() - 1)]
     }
 
     /// The front (outward) unit normal of primitive `prim` where the ray
@@ -143,10 +169,24 @@ impl Tables {
         })
     }
 
+    /// In a big scene, ask the memory system for the rows of the primitives
+    /// `hits[range]` (misses are skipped), which a bounce will read soon;
+    /// in a small one, nothing.
+    #[inline(always)]
+    pub fn prefetch_rows(&self, hits: &[u32], range: std::ops::Range<usize>) {
+        if self.big {
+            for &p in &hits[range] {
+                if let Some(row) = self.rows.get(p as usize) {
+                    prefetch_lines(row, 1);
+                }
+            }
+        }
+    }
+
     /// The [`rows`](Self::rows) of eight primitives, as eight columns.
     #[inline(always)]
     fn rows_8(&self, prims: &[usize; 8]) -> [f32x8; 8] {
-        let row = |l: usize| f32x8::from(self.rows[prims[l]]);
+        let row = |l: usize| self.rows[prims[l]];
         f32x8::transpose([
             row(0),
             row(1),
@@ -268,4 +308,43 @@ fn gather(idx: &[usize; 8], value: impl Fn(usize) -> f32) -> f32x8 {
         value(idx[6]),
         value(idx[7]),
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::triangle::NO_PRIM;
+
+    /// `emits` agrees with the materials for every primitive, and is false
+    /// for misses and past the last primitive, wherever the emitters sit
+    /// among the primitives.
+    #[test]
+    fn emits_is_the_materials_emission_for_every_primitive() {
+        let base = Scene::cornell();
+        let n = base.triangles.len();
+        let light = (base.triangles.iter())
+            .map(|t| t.material)
+            .find(|&m| base.materials[m as usize].emission != glam::Vec3::ZERO)
+            .expect("the Cornell box has a light");
+        let dark = base.triangles[0].material;
+        // The box as it is; no emitter; emitters first, last, and both
+        // ends with dark ones between.
+        let layouts: [&[usize]; 5] = [&[], &[0], &[n - 1], &[0, n - 1], &[5, 6, 20]];
+        for (k, lit) in layouts.iter().enumerate() {
+            let mut scene = base.clone();
+            if k > 0 {
+                for (i, t) in scene.triangles.iter_mut().enumerate() {
+                    t.material = if lit.contains(&i) { light } else { dark };
+                }
+            }
+            let tables = Tables::new(&scene);
+            for (i, t) in scene.triangles.iter().enumerate() {
+                let want = scene.materials[t.material as usize].emission != glam::Vec3::ZERO;
+                assert_eq!(tables.emits(i as u32), want, "layout {k}: primitive {i}");
+            }
+            for h in [NO_PRIM, n as u32, n as u32 + 7, u32::MAX - 1] {
+                assert!(!tables.emits(h), "layout {k}: {h} is no primitive");
+            }
+        }
+    }
 }
