@@ -162,12 +162,19 @@ impl Lanes for f32x8 {
     type Index = i32x8;
     #[inline(always)]
     fn from_slice(a: &[f32], fill: f32) -> Self {
+        // A whole vector is one load; a short one goes lane by lane.
+        if let Some(full) = a.first_chunk::<8>() {
+            return f32x8::from(*full);
+        }
         f32x8::from(std::array::from_fn::<f32, 8, _>(|l| {
             a.get(l).copied().unwrap_or(fill)
         }))
     }
     #[inline(always)]
     fn index_from_slice(a: &[i32], fill: i32) -> i32x8 {
+        if let Some(full) = a.first_chunk::<8>() {
+            return i32x8::from(*full);
+        }
         i32x8::from(std::array::from_fn::<i32, 8, _>(|l| {
             a.get(l).copied().unwrap_or(fill)
         }))
@@ -219,12 +226,20 @@ impl Lanes for f32x8 {
     }
     #[inline(always)]
     fn write_to(self, out: &mut [f32]) {
-        out.copy_from_slice(&self.to_array()[..out.len()]);
+        // A whole vector is one store (a copy of a length known only at
+        // run time is a call to `memcpy`); a short one is copied.
+        match <&mut [_; 8]>::try_from(&mut *out) {
+            Ok(full) => *full = self.to_array(),
+            Err(_) => out.copy_from_slice(&self.to_array()[..out.len()]),
+        }
     }
     #[inline(always)]
     fn index_write_to(i: i32x8, out: &mut [u32]) {
         let lanes: [u32; 8] = bytemuck::cast(i);
-        out.copy_from_slice(&lanes[..out.len()]);
+        match <&mut [_; 8]>::try_from(&mut *out) {
+            Ok(full) => *full = lanes,
+            Err(_) => out.copy_from_slice(&lanes[..out.len()]),
+        }
     }
 }
 
@@ -380,14 +395,21 @@ mod x16 {
         type Index = I32x16;
         #[inline(always)]
         fn from_slice(a: &[f32], fill: f32) -> Self {
-            let v: [f32; 16] = std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill));
+            // A whole vector is one load; a short one goes lane by lane.
+            let v: [f32; 16] = match a.first_chunk::<16>() {
+                Some(full) => *full,
+                None => std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill)),
+            };
             // SAFETY: `__m512` is 64 bytes that any bit pattern is valid for;
             // a reinterpretation needs no instruction.
             F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>(v) })
         }
         #[inline(always)]
         fn index_from_slice(a: &[i32], fill: i32) -> I32x16 {
-            let v: [i32; 16] = std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill));
+            let v: [i32; 16] = match a.first_chunk::<16>() {
+                Some(full) => *full,
+                None => std::array::from_fn(|l| a.get(l).copied().unwrap_or(fill)),
+            };
             // SAFETY: as in `from_slice`.
             I32x16(unsafe { std::mem::transmute::<[i32; 16], __m512i>(v) })
         }
@@ -455,13 +477,20 @@ mod x16 {
         fn write_to(self, out: &mut [f32]) {
             // SAFETY: as in `to_vec`.
             let lanes = unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) };
-            out.copy_from_slice(&lanes[..out.len()]);
+            // A whole vector is one store (see the 8-lane `write_to`).
+            match <&mut [_; 16]>::try_from(&mut *out) {
+                Ok(full) => *full = lanes,
+                Err(_) => out.copy_from_slice(&lanes[..out.len()]),
+            }
         }
         #[inline(always)]
         fn index_write_to(i: I32x16, out: &mut [u32]) {
             // SAFETY: `__m512i` and `[u32; 16]` are the same 64 bytes.
             let lanes = unsafe { std::mem::transmute::<__m512i, [u32; 16]>(i.0) };
-            out.copy_from_slice(&lanes[..out.len()]);
+            match <&mut [_; 16]>::try_from(&mut *out) {
+                Ok(full) => *full = lanes,
+                Err(_) => out.copy_from_slice(&lanes[..out.len()]),
+            }
         }
     }
 }
@@ -483,4 +512,68 @@ pub(crate) fn prefetch_lines<T>(p: &T, lines: usize) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = (p, lines);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `from_slice`, `index_from_slice`, `write_to` and `index_write_to`
+    /// at every length from 0 to a whole vector (and a longer slice to
+    /// read from): the slice's values in the first lanes, the fill in the
+    /// rest, and exactly the slice's length written back.
+    #[inline(always)]
+    fn slices_round_trip<R: Lanes>() {
+        let n = R::LANES;
+        let a: Vec<f32> = (0..n + 3).map(|i| i as f32 + 0.5).collect();
+        let ai: Vec<i32> = (0..n as i32 + 3).map(|i| 100 + i).collect();
+        for len in 0..=n {
+            let v = R::from_slice(&a[..len], -1.0);
+            let want: Vec<f32> = (0..n).map(|l| if l < len { a[l] } else { -1.0 }).collect();
+            assert_eq!(v.to_vec(), want, "{n} lanes: from_slice of {len}");
+            let mut out = vec![9.0f32; n + 2];
+            v.write_to(&mut out[..len]);
+            assert_eq!(out[..len], a[..len], "{n} lanes: write_to of {len}");
+            assert!(
+                out[len..].iter().all(|&x| x == 9.0),
+                "{n} lanes: wrote past {len}"
+            );
+
+            let i = R::index_from_slice(&ai[..len], -7);
+            let mut out = vec![9u32; n + 2];
+            R::index_write_to(i, &mut out[..n]);
+            let want: Vec<u32> = (0..n)
+                .map(|l| if l < len { ai[l] as u32 } else { -7i32 as u32 })
+                .collect();
+            assert_eq!(out[..n], want, "{n} lanes: index_from_slice of {len}");
+            let mut out = vec![9u32; n + 2];
+            R::index_write_to(i, &mut out[..len]);
+            let want: Vec<u32> = ai[..len].iter().map(|&x| x as u32).collect();
+            assert_eq!(out[..len], want, "{n} lanes: index_write_to of {len}");
+            assert!(
+                out[len..].iter().all(|&x| x == 9),
+                "{n} lanes: wrote past {len}"
+            );
+        }
+        let whole = R::from_slice(&a, -1.0).to_vec();
+        assert_eq!(
+            whole,
+            a[..n],
+            "{n} lanes: a longer slice gives its first lanes"
+        );
+    }
+
+    #[test]
+    fn slices_load_and_store_whole_and_short() {
+        slices_round_trip::<f32x8>();
+        #[cfg(target_arch = "x86_64")]
+        if SimdWidth::W16.is_available() {
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+            fn at_16() {
+                slices_round_trip::<F32x16>();
+            }
+            // SAFETY: the CPU has AVX-512 (checked just above).
+            unsafe { at_16() };
+        }
+    }
 }
