@@ -24,10 +24,20 @@ pub fn generate<S: Sampler>(
         aov.reset(0..n);
     }
     queue.start_paths();
-    let paths = pixels.flat_map(|p| samples.clone().map(move |s| (p, s)));
+    if n == 0 {
+        return;
+    }
     let (pixel_col, sampler_col) = (&mut queue.pixel[..n], &mut queue.sampler[..n]);
-    for ((p, s), (pixel, sample)) in pixel_col.iter_mut().zip(&mut *sampler_col).zip(paths) {
-        (*p, *s) = (pixel, sampler.start(pixel, sample));
+    // A pixel's rows, one per sample (a plain loop per pixel: each row's
+    // hash is independent of the others', so they overlap).
+    let rows = pixel_col
+        .chunks_mut(samples.len())
+        .zip(sampler_col.chunks_mut(samples.len()));
+    for (pixel, (p, s)) in pixels.zip(rows) {
+        p.fill(pixel);
+        for (s, sample) in s.iter_mut().zip(samples.clone()) {
+            *s = sampler.start(pixel, sample);
+        }
     }
     // Eight paths' numbers at a time, then their rays, eight at a time:
     // the point `(x + u_x, y + u_y)` of each one's pixel.
