@@ -139,12 +139,13 @@ pub fn reflect<R: Real>(w: V3<R>, n: V3<R>) -> V3<R> {
 pub fn tangents<R: Real>(n: V3<R>) -> (V3<R>, V3<R>) {
     let zero = R::splat(0.0);
     let use_x = n.y.abs().lt(n.x.abs());
-    let inv_xz = R::splat(1.0) / (n.x * n.x + n.z * n.z).sqrt();
-    let inv_yz = R::splat(1.0) / (n.y * n.y + n.z * n.z).sqrt();
+    // One length per lane, `|(x, z)|` or `|(y, z)|` as the lane chose
+    // (one square root and one division, not one of each per choice).
+    let inv = R::splat(1.0) / R::select(use_x, n.x * n.x + n.z * n.z, n.y * n.y + n.z * n.z).sqrt();
     let nt = V3::select(
         use_x,
-        V3::new(n.z * inv_xz, zero, -n.x * inv_xz),
-        V3::new(zero, -n.z * inv_yz, n.y * inv_yz),
+        V3::new(n.z * inv, zero, -n.x * inv),
+        V3::new(zero, -n.z * inv, n.y * inv),
     );
     let nb = n.cross(nt);
     (nt, nb)
