@@ -356,6 +356,21 @@ mod x16 {
             // SAFETY: see the module's documentation.
             F32x16(unsafe { _mm512_abs_ps(self.0) })
         }
+        /// One `vmaxps`: `max_ps(a, b)` is `if a > b { a } else { b }`,
+        /// so `max_ps(rhs, self)` is [`Real::max`]'s definition exactly
+        /// (NaNs and signed zeros included).
+        #[inline(always)]
+        fn max(self, rhs: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_max_ps(rhs.0, self.0) })
+        }
+        /// One `vminps`: `min_ps(rhs, self)` is `if rhs < self { rhs }
+        /// else { self }`, [`Real::min`]'s definition.
+        #[inline(always)]
+        fn min(self, rhs: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_min_ps(rhs.0, self.0) })
+        }
         #[inline(always)]
         fn round_ties_even(self) -> Self {
             // SAFETY: see the module's documentation.
@@ -561,6 +576,57 @@ mod tests {
             a[..n],
             "{n} lanes: a longer slice gives its first lanes"
         );
+    }
+
+    /// `Real::min` and `Real::max` of every pair of awkward values (NaN,
+    /// signed zeros, infinities, denormals) give the scalar definition's
+    /// bits in every lane.
+    #[inline(always)]
+    fn min_max_as_scalar<R: Lanes>() {
+        let vals = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -2.5,
+            f32::NAN,
+            f32::INFINITY,
+            -f32::INFINITY,
+            1e-40,
+            -1e30,
+        ];
+        for &a in &vals {
+            for &b in &vals {
+                let (va, vb) = (R::splat(a), R::splat(b));
+                let want = |x: f32| vec![x.to_bits(); R::LANES];
+                let bits = |v: R| v.to_vec().iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+                assert_eq!(
+                    bits(Real::min(va, vb)),
+                    want(Real::min(a, b)),
+                    "{} lanes: min({a}, {b})",
+                    R::LANES
+                );
+                assert_eq!(
+                    bits(Real::max(va, vb)),
+                    want(Real::max(a, b)),
+                    "{} lanes: max({a}, {b})",
+                    R::LANES
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn min_and_max_equal_the_scalar_definition_bitwise() {
+        min_max_as_scalar::<f32x8>();
+        #[cfg(target_arch = "x86_64")]
+        if SimdWidth::W16.is_available() {
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+            fn at_16() {
+                min_max_as_scalar::<F32x16>();
+            }
+            // SAFETY: the CPU has AVX-512 (checked just above).
+            unsafe { at_16() };
+        }
     }
 
     #[test]

@@ -71,16 +71,20 @@ impl From<&Triangle> for TriangleEdges {
 /// A ray parallel to the triangle's plane (`d · n = 0`), or a degenerate
 /// triangle, makes `u`, `v` or `t` infinite or NaN, and every comparison
 /// with NaN is false: such rays miss.
+///
+/// `v` is kept as its negation `nv = (e1 · w) / (d · n)` (rounding to
+/// nearest is symmetric, so `-nv` is `(-(e1 · w)) / (d · n)` bit for bit):
+/// `0 ≤ v` is `nv ≤ 0`, and `u + v` is `u - nv`, one negation fewer.
 #[inline(always)]
 pub fn moller_trumbore<R: Real>(o: V3<R>, d: V3<R>, tri: &V3Tri<R>, t_min: R) -> (R::Mask, R) {
     let c = tri.v0 - o;
     let w = c.cross(d);
     let inv_den = R::splat(1.0) / d.dot(tri.n);
     let u = tri.e2.dot(w) * inv_den;
-    let v = -tri.e1.dot(w) * inv_den;
+    let nv = tri.e1.dot(w) * inv_den;
     let t = c.dot(tri.n) * inv_den;
     let zero = R::splat(0.0);
-    let inside = zero.le(u) & zero.le(v) & (u + v).le(R::splat(1.0)) & t_min.lt(t);
+    let inside = zero.le(u) & nv.le(zero) & (u - nv).le(R::splat(1.0)) & t_min.lt(t);
     (inside, t)
 }
 
