@@ -208,6 +208,22 @@ fn check(tris: &[TriangleEdges], rays: usize, surface: usize, seed: u64) -> usiz
             for (s, got) in seg.iter().zip(out) {
                 assert_eq!(got, s.4, "batch occluded {s:?}");
             }
+            // As columns (in ray packets where the scene has them), the
+            // answers starting from the opposite of the right ones.
+            let col = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| rays.iter().map(f).collect::<Vec<f32>>();
+            let o = [col(&|r| r.0.x), col(&|r| r.0.y), col(&|r| r.0.z)];
+            let d = [col(&|r| r.1.x), col(&|r| r.1.y), col(&|r| r.1.z)];
+            let mut out: Vec<bool> = seg.iter().map(|s| !s.4).collect();
+            let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
+            bvh.occluded_columns(o, d, t_min, &ends, &mut out);
+            for (s, got) in seg.iter().zip(out) {
+                assert_eq!(
+                    got,
+                    s.4,
+                    "{:?}: occluded as columns {s:?}",
+                    bvh.simd_width()
+                );
+            }
         }
     }
     hits

@@ -581,19 +581,9 @@ impl Bvh {
             );
             return;
         }
-        let plan = &self.packets;
-        let range = (t_min, t_max);
-        let mut behind = Vec::new();
-        match self.width {
-            SimdWidth::W8 => {
-                packet::closest_hits::<f32x8>(plan, (o, d), range, t, prim, &mut behind)
-            }
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `one`.
-            SimdWidth::W16 => unsafe { packets16(plan, (o, d), range, t, prim, &mut behind) },
-            #[cfg(not(target_arch = "x86_64"))]
-            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
-        }
+        let mut q = packet::ClosestHits { t, prim, t_max };
+        let behind = self.packets(&mut q, (o, d), t_min);
+        let packet::ClosestHits { t, prim, .. } = q;
         if behind.is_empty() {
             return;
         }
@@ -633,6 +623,78 @@ impl Bvh {
                     (t[i], prim[i]) = (tk, pk);
                 }
             },
+        );
+    }
+
+    /// The rays `(o, d)` through the packet plan with query `q`, at this
+    /// tree's width; the rays that go on to the tree behind the plan.
+    #[inline(always)]
+    fn packets<Q>(&self, q: &mut Q, rays: ([&[f32]; 3], [&[f32]; 3]), t_min: f32) -> Vec<u32>
+    where
+        Q: packet::PacketQuery<f32x8> + PacketQuery16,
+    {
+        let mut behind = Vec::new();
+        match self.width {
+            SimdWidth::W8 => packet::trace::<f32x8, Q>(&self.packets, rays, t_min, q, &mut behind),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `one`.
+            SimdWidth::W16 => unsafe { packets16(&self.packets, rays, t_min, q, &mut behind) },
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
+        }
+        behind
+    }
+
+    /// [`Bvh::occluded`] for segments given as columns: ray `i` has origin
+    /// `(o[0][i], o[1][i], o[2][i])`, direction likewise from `d`, and ends
+    /// at `t_max[i]`; whether it is occluded goes to `out[i]`. The same
+    /// answers. In a scene traced in ray packets
+    /// ([`Bvh::closest_hits_columns`]) the segments go in packets too, and
+    /// only those that no packet triangle blocks and that enter the tree's
+    /// box walk it.
+    ///
+    /// # Panics
+    ///
+    /// If the columns and outputs differ in length.
+    #[inline(never)]
+    pub fn occluded_columns(
+        &self,
+        o: [&[f32]; 3],
+        d: [&[f32]; 3],
+        t_min: f32,
+        t_max: &[f32],
+        out: &mut [bool],
+    ) {
+        let n = out.len();
+        assert!(
+            t_max.len() == n && o.iter().chain(&d).all(|c| c.len() == n),
+            "one origin, direction, end and output per segment"
+        );
+        let ray = |i: usize| {
+            (
+                Vec3::new(o[0][i], o[1][i], o[2][i]),
+                Vec3::new(d[0][i], d[1][i], d[2][i]),
+                t_max[i],
+            )
+        };
+        if self.packets.is_empty() {
+            self.occluded_with(n, ray, t_min, |i, b| out[i] = b);
+            return;
+        }
+        out.fill(false);
+        let mut q = packet::AnyHits { t_max, out };
+        let behind = self.packets(&mut q, (o, d), t_min);
+        let out = q.out;
+        // The tree behind the packets' triangles, for the segments they
+        // leave open that enter its box.
+        self.many::<AnyHitKind>(
+            behind.len(),
+            #[inline(always)]
+            |k| ray(behind[k] as usize),
+            t_min,
+            false,
+            #[inline(always)]
+            |k, occluded| out[behind[k] as usize] |= occluded,
         );
     }
 
@@ -793,18 +855,27 @@ fn as_hit((t, prim): (f32, u32)) -> Option<Hit> {
     (prim != NO_PRIM).then_some(Hit { triangle: prim, t })
 }
 
-/// [`packet::closest_hits`] at 16 lanes, compiled with AVX-512.
+/// A packet query at 16 lanes too (where there are 16 lanes).
+#[cfg(target_arch = "x86_64")]
+trait PacketQuery16: packet::PacketQuery<F32x16> {}
+#[cfg(target_arch = "x86_64")]
+impl<Q: packet::PacketQuery<F32x16>> PacketQuery16 for Q {}
+#[cfg(not(target_arch = "x86_64"))]
+trait PacketQuery16 {}
+#[cfg(not(target_arch = "x86_64"))]
+impl<Q> PacketQuery16 for Q {}
+
+/// [`packet::trace`] at 16 lanes, compiled with AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-fn packets16(
+fn packets16<Q: packet::PacketQuery<F32x16>>(
     plan: &packet::Plan,
     rays: ([&[f32]; 3], [&[f32]; 3]),
-    range: (f32, f32),
-    t: &mut [f32],
-    prim: &mut [u32],
+    t_min: f32,
+    q: &mut Q,
     behind: &mut Vec<u32>,
 ) {
-    packet::closest_hits::<F32x16>(plan, rays, range, t, prim, behind)
+    packet::trace::<F32x16, Q>(plan, rays, t_min, q, behind)
 }
 
 /// [`Bvh::one`] at 16 lanes, compiled with AVX-512.

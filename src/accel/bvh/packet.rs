@@ -37,6 +37,7 @@ use super::build::Aabb;
 use crate::accel::simd::Lanes;
 use crate::accel::triangle::{PackHits, TriangleEdges, V3Tri, moller_trumbore};
 use crate::math::V3;
+use std::ops::Range;
 
 /// Rays handled together: the first triangles, then each group in turn,
 /// over this many rays (their columns stay in the L1 cache).
@@ -137,19 +138,158 @@ impl Plan {
     }
 }
 
+/// What a packet of rays asks of the plan's triangles, and where the
+/// answers go: the closest hit ([`ClosestHits`]) or whether anything lies
+/// on the segment ([`AnyHits`]). One lane per ray; [`PacketQuery::State`]
+/// is a packet's answer so far. Rays are numbered as in the columns.
+pub(crate) trait PacketQuery<R: Lanes> {
+    /// A packet's answer so far.
+    type State: Copy;
+    /// Number of rays.
+    fn len(&self) -> usize;
+    /// Rays `rows` (a packet, the last one perhaps short) before any test.
+    fn start(&self, rows: Range<usize>) -> Self::State;
+    /// The answers so far of the rays `rows` (lane `l`: ray `rows[l]`).
+    fn gather(&self, rows: &[u32]) -> Self::State;
+    /// Fold in triangle `index`'s test, lane by lane. `IN_ORDER`: the
+    /// caller tests triangles by increasing index (the first ones).
+    fn test<const IN_ORDER: bool>(s: &mut Self::State, inside: R::Mask, t: R, index: u32);
+    /// Lane by lane, past what distance nothing more can change the
+    /// answer (a box entered later is skipped).
+    fn far(s: &Self::State) -> R;
+    /// The lanes whose answer is final (bits): their rays enter no box.
+    fn settled(s: &Self::State) -> u32;
+    /// Write the answers of rays `rows` (after the first triangles).
+    fn store(&mut self, rows: Range<usize>, s: Self::State);
+    /// Write the answers of the rays `rows` (after a group's triangles).
+    fn scatter(&mut self, rows: &[u32], s: Self::State);
+}
+
+/// The closest hit: ray `i`'s `(t, primitive)` in `t[i]` and `prim[i]`
+/// ([`NO_PRIM`](crate::accel::triangle::NO_PRIM) where none; then `t[i]`
+/// is `t_max`).
+pub(crate) struct ClosestHits<'a> {
+    pub t: &'a mut [f32],
+    pub prim: &'a mut [u32],
+    pub t_max: f32,
+}
+
+impl<R: Lanes> PacketQuery<R> for ClosestHits<'_> {
+    type State = PackHits<R>;
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.t.len()
+    }
+    #[inline(always)]
+    fn start(&self, _: Range<usize>) -> PackHits<R> {
+        // Index -1 is `NO_PRIM` as a u32.
+        PackHits {
+            t: R::splat(self.t_max),
+            index: R::index_splat(-1),
+        }
+    }
+    #[inline(always)]
+    fn gather(&self, rows: &[u32]) -> PackHits<R> {
+        let mut so_far = [-1i32; 16];
+        for (l, &i) in rows.iter().enumerate() {
+            so_far[l] = self.prim[i as usize] as i32;
+        }
+        PackHits {
+            t: gather(self.t, rows),
+            index: R::index_from_slice(&so_far[..R::LANES], -1),
+        }
+    }
+    #[inline(always)]
+    fn test<const IN_ORDER: bool>(s: &mut PackHits<R>, inside: R::Mask, t: R, index: u32) {
+        s.keep::<IN_ORDER>(inside, t, R::index_splat(index as i32));
+    }
+    #[inline(always)]
+    fn far(s: &PackHits<R>) -> R {
+        s.t
+    }
+    #[inline(always)]
+    fn settled(_: &PackHits<R>) -> u32 {
+        0
+    }
+    #[inline(always)]
+    fn store(&mut self, rows: Range<usize>, s: PackHits<R>) {
+        s.t.write_to(&mut self.t[rows.clone()]);
+        R::index_write_to(s.index, &mut self.prim[rows]);
+    }
+    #[inline(always)]
+    fn scatter(&mut self, rows: &[u32], s: PackHits<R>) {
+        let (mut t, mut prim) = ([0.0f32; 16], [0u32; 16]);
+        s.t.write_to(&mut t[..R::LANES]);
+        R::index_write_to(s.index, &mut prim[..R::LANES]);
+        for (l, &i) in rows.iter().enumerate() {
+            self.t[i as usize] = t[l];
+            self.prim[i as usize] = prim[l];
+        }
+    }
+}
+
+/// Any hit: `out[i]` set where something lies on ray `i` before
+/// `t_max[i]` (left alone elsewhere: start it false).
+pub(crate) struct AnyHits<'a> {
+    pub t_max: &'a [f32],
+    pub out: &'a mut [bool],
+}
+
+impl<R: Lanes> PacketQuery<R> for AnyHits<'_> {
+    /// Each lane's segment end, and whether it is occluded.
+    type State = (R, R::Mask);
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.t_max.len()
+    }
+    #[inline(always)]
+    fn start(&self, rows: Range<usize>) -> (R, R::Mask) {
+        // Lanes past the end: the zero ray, with a segment nothing is on.
+        (R::from_slice(&self.t_max[rows], 0.0), R::splat_mask(false))
+    }
+    #[inline(always)]
+    fn gather(&self, rows: &[u32]) -> (R, R::Mask) {
+        (gather(self.t_max, rows), R::splat_mask(false))
+    }
+    #[inline(always)]
+    fn test<const IN_ORDER: bool>(s: &mut (R, R::Mask), inside: R::Mask, t: R, _: u32) {
+        s.1 = s.1 | (inside & t.lt(s.0));
+    }
+    #[inline(always)]
+    fn far(s: &(R, R::Mask)) -> R {
+        s.0
+    }
+    #[inline(always)]
+    fn settled(s: &(R, R::Mask)) -> u32 {
+        R::bits(s.1)
+    }
+    #[inline(always)]
+    fn store(&mut self, rows: Range<usize>, s: (R, R::Mask)) {
+        let bits = R::bits(s.1);
+        for (l, out) in self.out[rows].iter_mut().enumerate() {
+            *out |= bits & (1 << l) != 0;
+        }
+    }
+    #[inline(always)]
+    fn scatter(&mut self, rows: &[u32], s: (R, R::Mask)) {
+        let bits = R::bits(s.1);
+        for (l, &i) in rows.iter().enumerate() {
+            self.out[i as usize] |= bits & (1 << l) != 0;
+        }
+    }
+}
+
 /// Rays given as columns (`o[axis][i]`, `d[axis][i]`), `R::LANES` at a
-/// time, through `plan`: ray `i`'s closest hit with `t_min < t < t_max`
-/// into `t[i]` and `prim[i]` ([`NO_PRIM`](crate::accel::triangle::NO_PRIM)
-/// where none; then `t[i]` is `t_max`), among the plan's triangles.
-/// Where a tree lies behind the plan, the rays that enter its box before
-/// that hit are appended to `behind` (increasing indices).
+/// time, through `plan`, with query `q` (its answers among the plan's
+/// triangles). Where a tree lies behind the plan, the rays that enter its
+/// box before their answer is settled (the closest hit so far, the end of
+/// an open segment) are appended to `behind` (increasing indices).
 #[inline(always)]
-pub(crate) fn closest_hits<R: Lanes>(
+pub(crate) fn trace<R: Lanes, Q: PacketQuery<R>>(
     plan: &Plan,
-    (o, d): ([&[f32]; 3], [&[f32]; 3]),
-    (t_min, t_max): (f32, f32),
-    t: &mut [f32],
-    prim: &mut [u32],
+    rays: ([&[f32]; 3], [&[f32]; 3]),
+    t_min: f32,
+    q: &mut Q,
     behind: &mut Vec<u32>,
 ) {
     // Per group (and the tree), the rays of the block that enter its box
@@ -157,55 +297,52 @@ pub(crate) fn closest_hits<R: Lanes>(
     let mut entering = [[0u32; BLOCK + 16]; MAX_GROUPS + 1];
     let boxes = plan.groups.len() + usize::from(plan.has_tree());
     let entering = &mut entering[..boxes];
-    for b in (0..t.len()).step_by(BLOCK) {
-        let e = (b + BLOCK).min(t.len());
-        let o = o.map(|c| &c[b..e]);
-        let d = d.map(|c| &c[b..e]);
-        let (t, prim) = (&mut t[b..e], &mut prim[b..e]);
-        let counts = first_hits::<R>(plan, (o, d), (t_min, t_max), t, prim, entering);
+    let n = q.len();
+    for b in (0..n).step_by(BLOCK) {
+        let block = b..(b + BLOCK).min(n);
+        let counts = first_hits::<R, Q>(plan, rays, t_min, block, q, entering);
         for ((g, which), n) in plan.groups.iter().zip(&*entering).zip(counts) {
-            group_hits::<R>(plan, g, (o, d), t_min, &which[..n], t, prim);
+            group_hits::<R, Q>(plan, g, rays, t_min, &which[..n], q);
         }
         if plan.has_tree() {
             let k = plan.groups.len();
-            behind.extend(entering[k][..counts[k]].iter().map(|&i| i + b as u32));
+            behind.extend(&entering[k][..counts[k]]);
         }
     }
 }
 
-/// The first triangles, for every ray; then each group's box (and the
-/// tree's, last), for every ray: the rays that enter it before their hit
-/// so far go into `entering[group]`, and their count is returned.
+/// The first triangles, for every ray of `block`; then each group's box
+/// (and the tree's, last), for every ray whose answer is not settled: the
+/// rays that enter it before their answer's `far` go into
+/// `entering[group]`, and their count is returned.
 #[inline(always)]
-fn first_hits<R: Lanes>(
+fn first_hits<R: Lanes, Q: PacketQuery<R>>(
     plan: &Plan,
     (o, d): ([&[f32]; 3], [&[f32]; 3]),
-    (t_min, t_max): (f32, f32),
-    t: &mut [f32],
-    prim: &mut [u32],
+    t_min: f32,
+    block: Range<usize>,
+    q: &mut Q,
     entering: &mut [[u32; BLOCK + 16]],
 ) -> [usize; MAX_GROUPS + 1] {
     let mut counts = [0; MAX_GROUPS + 1];
     let boxes = || plan.groups.iter().chain(&plan.tree);
     let first = &plan.tris[..plan.first];
-    for start in (0..t.len()).step_by(R::LANES) {
-        let end = (start + R::LANES).min(t.len());
+    for start in block.clone().step_by(R::LANES) {
+        let end = (start + R::LANES).min(block.end);
         let lanes = |c: &[f32]| R::from_slice(&c[start..end], 0.0);
         let ray_o = V3::new(lanes(o[0]), lanes(o[1]), lanes(o[2]));
         let ray_d = V3::new(lanes(d[0]), lanes(d[1]), lanes(d[2]));
-        // Index -1 is `NO_PRIM` as a u32. The lanes of a short last packet
-        // hold the zero ray, which hits nothing and is not written.
-        let mut best = PackHits {
-            t: R::splat(t_max),
-            index: R::index_splat(-1),
-        };
+        // The lanes of a short last packet hold the zero ray, which hits
+        // nothing and is not written.
+        let mut s = q.start(start..end);
         for (tri, &index) in first.iter().zip(&plan.index) {
             let (inside, t_hit) = moller_trumbore(ray_o, ray_d, &splat(tri), R::splat(t_min));
-            best.keep::<true>(inside, t_hit, R::index_splat(index as i32));
+            Q::test::<true>(&mut s, inside, t_hit, index);
         }
-        best.t.write_to(&mut t[start..end]);
-        R::index_write_to(best.index, &mut prim[start..end]);
-        if entering.is_empty() {
+        q.store(start..end, s);
+        // Lanes past the end hold the zero ray: not rays.
+        let open = ((1u32 << (end - start)) - 1) & !Q::settled(&s);
+        if entering.is_empty() || open == 0 {
             continue;
         }
         // The slab test of the tree's nodes (`Node8::intersect`), with
@@ -220,33 +357,30 @@ fn first_hits<R: Lanes>(
             one / safe_direction(ray_d.z),
         ];
         let o_inv = [ray_o.x * inv[0], ray_o.y * inv[1], ray_o.z * inv[2]];
-        // Lanes past the end hold the zero ray: not rays.
-        let real = (1u32 << (end - start)) - 1;
         for ((g, out), n) in boxes().zip(&mut *entering).zip(&mut counts) {
-            let (mut near, mut far) = (R::splat(t_min), best.t);
+            let (mut near, mut far) = (R::splat(t_min), Q::far(&s));
             for a in 0..3 {
                 let t0 = R::splat(g.lo[a]).mul_add(inv[a], -o_inv[a]);
                 let t1 = R::splat(g.hi[a]).mul_add(inv[a], -o_inv[a]);
                 near = near.max(t0.min(t1));
                 far = far.min(t0.max(t1));
             }
-            *n += R::compress(R::bits(near.le(far)) & real, start as u32, &mut out[*n..]);
+            *n += R::compress(R::bits(near.le(far)) & open, start as u32, &mut out[*n..]);
         }
     }
     counts
 }
 
 /// `g`'s triangles for the rays `which`, `R::LANES` at a time, gathered
-/// from the columns; their hits (where closer) scattered back.
+/// from the columns; their answers scattered back.
 #[inline(always)]
-fn group_hits<R: Lanes>(
+fn group_hits<R: Lanes, Q: PacketQuery<R>>(
     plan: &Plan,
     g: &Group,
     (o, d): ([&[f32]; 3], [&[f32]; 3]),
     t_min: f32,
     which: &[u32],
-    t: &mut [f32],
-    prim: &mut [u32],
+    q: &mut Q,
 ) {
     let t_min = R::splat(t_min);
     let tris = &plan.tris[g.start..g.end];
@@ -254,25 +388,12 @@ fn group_hits<R: Lanes>(
     for rays in which.chunks(R::LANES) {
         let ray_o = V3::new(gather(o[0], rays), gather(o[1], rays), gather(o[2], rays));
         let ray_d = V3::new(gather(d[0], rays), gather(d[1], rays), gather(d[2], rays));
-        let mut so_far = [-1i32; 16];
-        for (l, &i) in rays.iter().enumerate() {
-            so_far[l] = prim[i as usize] as i32;
-        }
-        let mut best = PackHits {
-            t: gather(t, rays),
-            index: R::index_from_slice(&so_far[..R::LANES], -1),
-        };
+        let mut s = q.gather(rays);
         for (tri, &index) in tris.iter().zip(index) {
             let (inside, t_hit) = moller_trumbore(ray_o, ray_d, &splat(tri), t_min);
-            best.keep::<false>(inside, t_hit, R::index_splat(index as i32));
+            Q::test::<false>(&mut s, inside, t_hit, index);
         }
-        let (mut t_out, mut prim_out) = ([0.0f32; 16], [0u32; 16]);
-        best.t.write_to(&mut t_out[..R::LANES]);
-        R::index_write_to(best.index, &mut prim_out[..R::LANES]);
-        for (l, &i) in rays.iter().enumerate() {
-            t[i as usize] = t_out[l];
-            prim[i as usize] = prim_out[l];
-        }
+        q.scatter(rays, s);
     }
 }
 

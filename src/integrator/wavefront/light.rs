@@ -8,9 +8,9 @@ use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, ShadowRay, connect, connect_shaded};
+use crate::integrator::nee::{Estimator, connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
-use crate::math::{V3, Vec3x8};
+use crate::math::V3;
 use crate::scene::Model;
 use std::ops::Range;
 use wide::f32x8;
@@ -81,25 +81,9 @@ fn sample_lights_8<S: Sampler>(
     } else {
         connect(&light, eps, (p, n, -d), &surface)
     };
-    let valid = valid.to_bitmask();
+    // The live lanes that may carry light.
+    let valid = valid.to_bitmask() as u8 & (u8::MAX >> (8 - lanes));
     if valid != 0 {
-        let a = |v: f32x8| v.to_array();
-        let v3 = |v: &Vec3x8| [a(v.x), a(v.y), a(v.z)];
-        let (o, dir, r, t) = (
-            v3(&ray.origin),
-            v3(&ray.dir),
-            v3(&ray.radiance),
-            a(ray.t_max),
-        );
-        for l in (0..lanes).filter(|l| valid & (1 << l) != 0) {
-            let lane = |v: &[[f32; 8]; 3]| V3::new(v[0][l], v[1][l], v[2][l]);
-            let ray = ShadowRay {
-                origin: lane(&o),
-                dir: lane(&dir),
-                t_max: t[l],
-                radiance: lane(&r),
-            };
-            shadows.push((i + l) as u32, ray);
-        }
+        shadows.push_8(i as u32, valid, &ray);
     }
 }
