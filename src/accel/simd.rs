@@ -615,31 +615,31 @@ mod tests {
         }
     }
 
+    /// `check::<f32x8>()`, then `check::<F32x16>()` where the CPU has
+    /// AVX-512 (compiled with it: the 16-lane methods are only ever run
+    /// inside such a function).
+    macro_rules! at_every_width {
+        ($check:ident) => {{
+            $check::<f32x8>();
+            #[cfg(target_arch = "x86_64")]
+            if SimdWidth::W16.is_available() {
+                #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+                fn at_16() {
+                    $check::<F32x16>();
+                }
+                // SAFETY: the CPU has AVX-512 (checked just above).
+                unsafe { at_16() };
+            }
+        }};
+    }
+
     #[test]
     fn min_and_max_equal_the_scalar_definition_bitwise() {
-        min_max_as_scalar::<f32x8>();
-        #[cfg(target_arch = "x86_64")]
-        if SimdWidth::W16.is_available() {
-            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-            fn at_16() {
-                min_max_as_scalar::<F32x16>();
-            }
-            // SAFETY: the CPU has AVX-512 (checked just above).
-            unsafe { at_16() };
-        }
+        at_every_width!(min_max_as_scalar);
     }
 
     #[test]
     fn slices_load_and_store_whole_and_short() {
-        slices_round_trip::<f32x8>();
-        #[cfg(target_arch = "x86_64")]
-        if SimdWidth::W16.is_available() {
-            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-            fn at_16() {
-                slices_round_trip::<F32x16>();
-            }
-            // SAFETY: the CPU has AVX-512 (checked just above).
-            unsafe { at_16() };
-        }
+        at_every_width!(slices_round_trip);
     }
 }

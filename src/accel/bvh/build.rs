@@ -104,6 +104,13 @@ impl Aabb {
         self.hi = self.hi.max(p);
     }
 
+    /// The largest magnitude of its coordinates (at least `1e-30`): the
+    /// scale a tree's padding of its boxes ([`PAD`]) is relative to.
+    #[inline]
+    pub fn extent(&self) -> f32 {
+        self.lo.abs().max(self.hi.abs()).max_element().max(1e-30)
+    }
+
     /// Half the surface area (0 for an empty box).
     #[inline(always)]
     pub fn half_area(&self) -> f32 {
@@ -535,13 +542,7 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
     let extent = if prims.is_empty() {
         1.0
     } else {
-        whole
-            .b
-            .lo
-            .abs()
-            .max(whole.b.hi.abs())
-            .max_element()
-            .max(1e-30)
+        whole.b.extent()
     };
     let pad = Vec3A::splat(extent * PAD);
     let tree = (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params));

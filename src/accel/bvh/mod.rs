@@ -568,12 +568,7 @@ impl Bvh {
             self.closest_hits_into(
                 n,
                 #[inline(always)]
-                |i| {
-                    (
-                        Vec3::new(o[0][i], o[1][i], o[2][i]),
-                        Vec3::new(d[0][i], d[1][i], d[2][i]),
-                    )
-                },
+                |i| column_ray((o, d), i),
                 t_min,
                 t_max,
                 #[inline(always)]
@@ -607,12 +602,8 @@ impl Bvh {
             behind.len(),
             #[inline(always)]
             |k| {
-                let i = behind[k] as usize;
-                (
-                    Vec3::new(o[0][i], o[1][i], o[2][i]),
-                    Vec3::new(d[0][i], d[1][i], d[2][i]),
-                    limit[k],
-                )
+                let (o, d) = column_ray((o, d), behind[k] as usize);
+                (o, d, limit[k])
             },
             t_min,
             false,
@@ -671,17 +662,13 @@ impl Bvh {
             "one origin, direction, end and output per segment"
         );
         let ray = |i: usize| {
-            (
-                Vec3::new(o[0][i], o[1][i], o[2][i]),
-                Vec3::new(d[0][i], d[1][i], d[2][i]),
-                t_max[i],
-            )
+            let (o, d) = column_ray((o, d), i);
+            (o, d, t_max[i])
         };
         if self.packets.is_empty() {
             self.occluded_with(n, ray, t_min, |i, b| out[i] = b);
             return;
         }
-        out.fill(false);
         let mut q = packet::AnyHits { t_max, out };
         let behind = self.packets(&mut q, (o, d), t_min);
         let out = q.out;
@@ -847,6 +834,15 @@ fn triangle_box(t: &TriangleEdges) -> Aabb {
         lo: v0.min(v1).min(v2),
         hi: v0.max(v1).max(v2),
     }
+}
+
+/// Ray `i` of rays given as columns: its origin and direction.
+#[inline(always)]
+fn column_ray((o, d): ([&[f32]; 3], [&[f32]; 3]), i: usize) -> (Vec3, Vec3) {
+    (
+        Vec3::new(o[0][i], o[1][i], o[2][i]),
+        Vec3::new(d[0][i], d[1][i], d[2][i]),
+    )
 }
 
 /// A closest-hit query's `(t, primitive)` as an optional [`Hit`].

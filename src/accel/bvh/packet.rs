@@ -228,8 +228,9 @@ impl<R: Lanes> PacketQuery<R> for ClosestHits<'_> {
     }
 }
 
-/// Any hit: `out[i]` set where something lies on ray `i` before
-/// `t_max[i]` (left alone elsewhere: start it false).
+/// Any hit: `out[i]` is whether something lies on ray `i` before
+/// `t_max[i]` (written after the first triangles, then set where a
+/// group's triangle blocks it).
 pub(crate) struct AnyHits<'a> {
     pub t_max: &'a [f32],
     pub out: &'a mut [bool],
@@ -267,7 +268,7 @@ impl<R: Lanes> PacketQuery<R> for AnyHits<'_> {
     fn store(&mut self, rows: Range<usize>, s: (R, R::Mask)) {
         let bits = R::bits(s.1);
         for (l, out) in self.out[rows].iter_mut().enumerate() {
-            *out |= bits & (1 << l) != 0;
+            *out = bits & (1 << l) != 0;
         }
     }
     #[inline(always)]

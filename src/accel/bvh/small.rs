@@ -178,17 +178,7 @@ fn candidates<'a>(
 /// [`MAX_FIRST_PACKS`] packs of `lanes` of them (the largest), by
 /// increasing index; none when no triangle is that large.
 pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> {
-    let scene = tris
-        .par_iter()
-        .filter(|t| t.is_finite())
-        .map(triangle_box)
-        .reduce(
-            || Aabb::EMPTY,
-            |mut a, b| {
-                a.grow(&b);
-                a
-            },
-        );
+    let scene = union(tris.par_iter().filter(|t| t.is_finite()).map(triangle_box));
     let limit = LARGE * scene.half_area();
     let mut large: Vec<(f32, u32)> = tris
         .par_iter()
@@ -232,23 +222,23 @@ pub(super) fn front_plan(tris: &[TriangleEdges], first: &[u32], width: SimdWidth
     let groups: Vec<(Aabb, Vec<u32>)> = sub_groups.iter().map(|(b, g)| (*b, global(g))).collect();
     // The padded box of every triangle but the first ones.
     let is_first = |i: usize| first.binary_search(&(i as u32)).is_ok();
-    let mut tree = tris
-        .par_iter()
-        .enumerate()
-        .filter(|&(i, _)| !is_first(i))
-        .map(|(_, t)| triangle_box(t))
-        .reduce(
-            || Aabb::EMPTY,
-            |mut a, b| {
-                a.grow(&b);
-                a
-            },
-        );
-    let extent = tree.lo.abs().max(tree.hi.abs()).max_element().max(1e-30);
-    let pad = extent * super::build::PAD;
+    let others = tris.par_iter().enumerate().filter(|&(i, _)| !is_first(i));
+    let mut tree = union(others.map(|(_, t)| triangle_box(t)));
+    let pad = tree.extent() * super::build::PAD;
     tree.lo -= pad;
     tree.hi += pad;
     Some(Plan::new(tris, &global(&sub_first), &groups).with_tree_box(&tree))
+}
+
+/// The box around `boxes`, in parallel.
+fn union(boxes: impl ParallelIterator<Item = Aabb>) -> Aabb {
+    boxes.reduce(
+        || Aabb::EMPTY,
+        |mut a, b| {
+            a.grow(&b);
+            a
+        },
+    )
 }
 
 /// The cheapest of [`packet_candidates`] by the count over `rays`, and
@@ -345,8 +335,7 @@ fn padded_box(tris: &[TriangleEdges], ids: &[u32], pad: f32) -> Aabb {
 fn pad_of(tris: &[TriangleEdges]) -> f32 {
     let extent = tris
         .iter()
-        .map(triangle_box)
-        .map(|b| b.lo.abs().max(b.hi.abs()).max_element())
+        .map(|t| triangle_box(t).extent())
         .fold(1e-30f32, f32::max);
     extent * super::build::PAD
 }
