@@ -1,7 +1,10 @@
 //! wavetrace: a fast, reproducible CPU path tracer.
 //!
 //! The modules follow the data flow of a render, each layer using only
-//! the ones before it:
+//! its own modules and those of the layers before it (`tests/architecture.rs`
+//! checks it, and that no two modules use each other). The layers, in order:
+//! `math`, `fs` → `scene` → `accel` → `film` → `integrator` → `output`,
+//! `metrics`, `denoise` → `render` → `run` → `cli`.
 //!
 //! 1. [`scene`]: the input — camera, materials, triangles; TOML scene
 //!    files, OBJ meshes, generated meshes, the built-in Cornell box. Knows

@@ -3,17 +3,20 @@
 //! earlier layers, and no two modules use each other, directly or through
 //! others.
 //!
-//! The layers, in order: `math`, `fs` → `scene` → `accel` → `film` →
-//! `integrator` → `output`, `metrics`, `denoise` → `render` → `run` → `cli`. `error` (the
-//! library's `Error`) wraps the typed errors of several layers, so it may
-//! name the modules that define them — and those modules never return
-//! `crate::Error` themselves (the cycle check below holds them to it).
+//! The layers are stated once, in [`LAYERS`]; the README, `src/lib.rs` and
+//! `docs/architecture.md` repeat them in one sentence ([`layer_sentence`]),
+//! which this test checks word for word. `error` (the library's `Error`)
+//! wraps the typed errors of several layers, so it may name the modules
+//! that define them — and those modules never return `crate::Error`
+//! themselves (the cycle check below holds them to it).
 //!
-//! Module uses are read from the source: every `crate::a::b` path, every
-//! `super::a` path, and `use` lines of submodules (`use self::…` or a
-//! submodule's name), outside `#[cfg(test)]` code and comments. A module
-//! using an item of one of its ancestors is not an edge: a parent declares
-//! its children and their shared types live there.
+//! Module uses are read from the whole source of every file: every
+//! `crate::a::b` path, every `super::a` path, and `use` lines of
+//! submodules (`use self::…` or a submodule's name), outside comments and
+//! outside the items marked `#[cfg(test)]` (test modules, test-only
+//! functions), wherever they are in the file. A module using an item of
+//! one of its ancestors is not an edge: a parent declares its children
+//! and their shared types live there.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -64,13 +67,90 @@ fn modules() -> BTreeMap<String, String> {
     out
 }
 
-/// The text before `#[cfg(test)]`, with line comments removed.
+/// The one sentence that states the layer order, as the README,
+/// `src/lib.rs` and `docs/architecture.md` write it.
+fn layer_sentence() -> String {
+    let layers: Vec<String> = LAYERS.iter().map(|l| l.join(", ")).collect();
+    format!("The layers, in order: {}.", layers.join(" → "))
+}
+
+/// `text` without its line comments and without every item marked
+/// `#[cfg(test)]` (up to the end of its braces, or its `;`), the rest of
+/// the file kept.
 fn without_tests_and_comments(text: &str) -> String {
-    let code = text.split("#[cfg(test)]").next().unwrap();
-    code.lines()
-        .map(|l| l.split("//").next().unwrap())
-        .collect::<Vec<_>>()
-        .join("\n")
+    let mut code = without_comments(text);
+    while let Some(start) = code.find("#[cfg(test)]") {
+        let end = item_end(&code, start);
+        code.replace_range(start..end, "");
+    }
+    code
+}
+
+/// The length of the string or character literal at the start of `s`
+/// (0 if there is none: a lifetime is no literal).
+fn literal_len(s: &[u8]) -> usize {
+    let closing = match s.first() {
+        Some(b'"') => b'"',
+        Some(b'\'') if s.get(1) == Some(&b'\\') || s.get(2) == Some(&b'\'') => b'\'',
+        _ => return 0,
+    };
+    let mut i = 1;
+    while i < s.len() && s[i] != closing {
+        i += if s[i] == b'\\' { 2 } else { 1 };
+    }
+    (i + 1).min(s.len())
+}
+
+/// `text` without its line comments (`//` outside literals, to the end
+/// of the line).
+fn without_comments(text: &str) -> String {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let lit = literal_len(&bytes[i..]);
+        if lit > 0 {
+            out.extend_from_slice(&bytes[i..i + lit]);
+            i += lit;
+        } else if bytes[i..].starts_with(b"//") {
+            while i < bytes.len() && bytes[i] != b'\n' {
+                i += 1;
+            }
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).unwrap()
+}
+
+/// The end of the item that starts at byte `start`: after its matching
+/// closing brace, or after its `;` if that comes before any brace.
+/// Literals are skipped (their braces do not count).
+fn item_end(code: &str, start: usize) -> usize {
+    let bytes = code.as_bytes();
+    let mut depth = 0usize;
+    let mut i = start;
+    while i < bytes.len() {
+        let lit = literal_len(&bytes[i..]);
+        if lit > 0 {
+            i += lit;
+            continue;
+        }
+        match bytes[i] {
+            b'{' => depth += 1,
+            b'}' => {
+                depth -= 1;
+                if depth == 0 {
+                    return i + 1;
+                }
+            }
+            b';' if depth == 0 => return i + 1,
+            _ => {}
+        }
+        i += 1;
+    }
+    bytes.len()
 }
 
 /// The `::`-separated identifiers that follow each occurrence of `prefix`.
@@ -161,6 +241,46 @@ fn the_module_graph_is_read() {
     assert!(g["integrator::wavefront::bounce"].contains("integrator::wavefront::queue"));
     assert!(g["accel::bvh"].contains("accel::triangle"));
     assert!(g.len() > 30, "only {} modules read", g.len());
+}
+
+#[test]
+fn test_items_are_cut_and_the_code_after_them_is_read() {
+    let text = "use crate::a;\n#[cfg(test)]\nfn helper() { let s = \"}//\"; crate::b::f('{', '\\''); }\n\
+                pub fn g() { crate::c::h(); } // crate::d\n\
+                #[cfg(test)]\nuse crate::e;\n#[cfg(test)]\nmod tests {\n fn t() { crate::f(); }\n}\n\
+                pub fn k() { crate::g::h(); }\n";
+    let kept = without_tests_and_comments(text);
+    for (path, read) in [
+        ("crate::a", true),
+        ("crate::b", false),
+        ("crate::c", true),
+        ("crate::d", false),
+        ("crate::e", false),
+        ("crate::f", false),
+        ("crate::g", true),
+    ] {
+        assert_eq!(kept.contains(path), read, "{path} in {kept:?}");
+    }
+}
+
+#[test]
+fn the_readme_lib_and_architecture_notes_state_the_tested_layer_order() {
+    let sentence = layer_sentence();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for file in ["README.md", "src/lib.rs", "docs/architecture.md"] {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        // Lines joined, doc-comment markers and backquotes dropped: the
+        // sentence may wrap and set the names as code.
+        let text = text.replace('`', "");
+        let words: Vec<&str> = (text.lines())
+            .map(|l| l.trim().trim_start_matches("//!"))
+            .flat_map(str::split_whitespace)
+            .collect();
+        assert!(
+            words.join(" ").contains(&sentence),
+            "{file} does not state the layer order as the test has it: {sentence:?}"
+        );
+    }
 }
 
 #[test]

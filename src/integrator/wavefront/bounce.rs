@@ -1,12 +1,11 @@
-//! Stage *bounce*: group the live paths by material model, then sample
-//! each one's next direction and update its throughput, eight paths at a
-//! time, with the model's scattering routine.
+//! Stage *bounce*: sample each live path's next direction and update its
+//! throughput, eight paths at a time, each model's rows (grouped by the
+//! *sort* stage) with the model's scattering routine.
 
+use super::Ctx;
 use super::queue::{PathQueue, load8, store_lanes, store3};
-use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
-use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::{Integrator, Model};
@@ -19,12 +18,10 @@ use wide::f32x8;
 pub fn bounce<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     bins: &[(Model, Range<usize>)],
-    sampler: &S,
-    tables: &Tables,
-    estimator: &Estimator,
+    ctx: &Ctx<S>,
 ) {
     for (model, rows) in bins {
-        scatter(queue, *model, rows.clone(), sampler, tables, estimator);
+        scatter(queue, *model, rows.clone(), ctx);
     }
 }
 
@@ -39,10 +36,9 @@ pub fn scatter<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     model: Model,
     rows: Range<usize>,
-    sampler: &S,
-    tables: &Tables,
-    estimator: &Estimator,
+    ctx: &Ctx<S>,
 ) {
+    let (sampler, tables, estimator) = (ctx.sampler, ctx.tables, ctx.est);
     let report = estimator.integrator == Integrator::Report;
     for i in rows.clone().step_by(8) {
         // Two groups ahead: their rows are on their way while these bounce.
@@ -86,8 +82,12 @@ pub fn scatter<S: Sampler>(
 
 #[cfg(test)]
 mod tests {
+    use super::super::tables::Tables;
     use super::*;
+    use crate::accel::bvh::Bvh;
     use crate::integrator::bsdf::Surface;
+    use crate::integrator::lights::Lights;
+    use crate::integrator::nee::Estimator;
     use crate::integrator::sampler::{Independent, PathRng};
     use crate::scene::Scene;
 
@@ -115,12 +115,20 @@ mod tests {
     fn every_row_bounces_as_the_scalar_routine_whatever_the_tail() {
         let scene = Scene::cornell();
         let tables = Tables::new(&scene);
+        let lights = Lights::new(&scene);
+        let bvh = Bvh::build(&crate::accel::scene_triangles(&scene));
         let sampler = Independent::new(11);
         for n in 0..=17 {
             let before = queue(n, &sampler);
             let mut after = before.clone();
-            let est = Estimator::report(3);
-            scatter(&mut after, Model::Diffuse, 0..n, &sampler, &tables, &est);
+            let ctx = Ctx {
+                sampler: &sampler,
+                est: &Estimator::report(3),
+                tables: &tables,
+                lights: &lights,
+                bvh: &bvh,
+            };
+            scatter(&mut after, Model::Diffuse, 0..n, &ctx);
             for i in 0..n {
                 // The same row, bounced by the scalar (f32) routine.
                 let tri = before.hit[i] as usize;

@@ -1,5 +1,6 @@
 //! Stage *generate*: camera rays for a batch of (pixel, sample) pairs.
 
+use super::Ctx;
 use super::queue::{PathQueue, store3};
 use crate::integrator::Frame;
 use crate::integrator::sampler::Sampler;
@@ -13,11 +14,12 @@ use wide::f32x8;
 /// start empty.
 pub fn generate<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
-    sampler: &S,
+    ctx: &Ctx<S>,
     frame: &Frame,
     pixels: Range<u32>,
     samples: Range<u32>,
 ) {
+    let sampler = ctx.sampler;
     let n = pixels.len() * samples.len();
     queue.set_len(n);
     if let Some(aov) = &mut queue.aov {

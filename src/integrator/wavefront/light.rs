@@ -2,13 +2,12 @@
 //! on an emitter and the shadow ray towards it, queued for the *shadow*
 //! stage. Eight paths at a time.
 
+use super::Ctx;
 use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
-use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
-use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, connect, connect_shaded};
+use crate::integrator::nee::{connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::Model;
@@ -22,44 +21,42 @@ use wide::f32x8;
 pub fn sample_lights<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     bins: &[(Model, Range<usize>)],
-    (sampler, estimator): (&S, &Estimator),
-    (tables, lights): (&Tables, &Lights),
+    ctx: &Ctx<S>,
     shadows: &mut ShadowQueue,
 ) {
     shadows.clear();
     for (model, rows) in bins {
         if model.is_delta() {
             for path in &mut queue.sampler[rows.clone()] {
-                estimator.skip_light_numbers(sampler, path);
+                ctx.est.skip_light_numbers(ctx.sampler, path);
             }
             continue;
         }
         let (model, rows) = (*model, rows.clone());
         for i in rows.clone().step_by(8) {
-            sample_lights_8(
-                queue,
-                (i, (rows.end - i).min(8), model),
-                (sampler, estimator),
-                (tables, lights),
-                shadows,
-            );
+            let lanes = (rows.end - i).min(8);
+            sample_lights_8(queue, i..i + lanes, model, ctx, shadows);
         }
     }
 }
 
-/// [`sample_lights`] for the `lanes` paths of rows `i..i + lanes`, at
+/// [`sample_lights`] for the (at most 8) paths of rows `rows`, at
 /// surfaces of model `model`.
 #[inline(always)]
 fn sample_lights_8<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
-    (i, lanes, model): (usize, usize, Model),
-    (sampler, estimator): (&S, &Estimator),
-    (tables, lights): (&Tables, &Lights),
+    rows: Range<usize>,
+    model: Model,
+    ctx: &Ctx<S>,
     shadows: &mut ShadowQueue,
 ) {
+    let (i, lanes) = (rows.start, rows.len());
+    let (tables, lights) = (ctx.tables, ctx.lights);
     // Each lane's emitter and point on it (lanes past the last path are
     // for nothing: no shadow ray is queued for them).
-    let [u0, u1] = estimator.light_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
+    let [u0, u1] = ctx
+        .est
+        .light_numbers_8(ctx.sampler, &mut queue.sampler[rows]);
     let mut tris = [queue.hit[i] as usize; 8];
     for (tri, &hit) in tris.iter_mut().zip(&queue.hit[i..i + lanes]) {
         *tri = hit as usize;

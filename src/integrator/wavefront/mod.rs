@@ -19,6 +19,8 @@
 //!    direction and throughput, 8 paths at a time.
 //!
 //! Each stage is one file of this module and one [`Stage`] in the timings;
+//! each reads what no stage changes (the sampler, the estimator, the
+//! scene's tables and lights, the hierarchy) from one [`Ctx`].
 //! [`WavefrontEngine::render_tile`]'s depth loop reads as the list above.
 //!
 //! Threads take tiles of pixels; a tile's batches own their queues and
@@ -49,11 +51,9 @@ use std::ops::Range;
 use std::sync::Arc;
 use tables::Tables;
 
-/// Per-thread working memory: the queue and room for the hierarchy's
-/// batched queries.
+/// Per-thread working memory: the path queue and the shadow rays.
 pub struct Scratch<P> {
     queue: PathQueue<P>,
-    rays: intersect::RayBatch,
     shadows: shadow::ShadowQueue,
 }
 
@@ -63,10 +63,25 @@ impl<P: bytemuck::Pod> Scratch<P> {
     pub fn new(batch_size: usize, aovs: AovSet) -> Self {
         Self {
             queue: PathQueue::with_aovs(batch_size, aovs),
-            rays: intersect::RayBatch::default(),
             shadows: shadow::ShadowQueue::default(),
         }
     }
+}
+
+/// What the stages of a render read and never change: where the numbers
+/// come from, the estimator, the scene as tables and lights, and the
+/// hierarchy. One value per batch, passed to every stage.
+pub struct Ctx<'a, S> {
+    /// The numbers of every path.
+    pub sampler: &'a S,
+    /// What a path does at a vertex: integrator, depths, roulette.
+    pub est: &'a Estimator,
+    /// The scene's primitives and materials, as columns.
+    pub tables: &'a Tables,
+    /// The emitters, for light sampling and MIS weights.
+    pub lights: &'a Lights,
+    /// The closest-hit and any-hit queries.
+    pub bvh: &'a Bvh,
 }
 
 /// The wavefront path tracer.
@@ -132,50 +147,48 @@ impl WavefrontEngine {
         (pixels, samples): (Range<u32>, Range<u32>),
         counters: &mut Counters,
     ) {
-        let Scratch {
-            queue,
-            rays,
-            shadows,
-        } = scratch;
-        let (est, tables, lights) = (&self.estimator, &self.tables, &self.lights);
+        let Scratch { queue, shadows } = scratch;
+        let ctx = Ctx {
+            sampler,
+            est: &self.estimator,
+            tables: &self.tables,
+            lights: &self.lights,
+            bvh: &self.bvh,
+        };
         let time = &mut counters.stages;
         time.time(Stage::Generate, || {
-            generate::generate(queue, sampler, job.frame, pixels, samples)
+            generate::generate(queue, &ctx, job.frame, pixels, samples)
         });
         counters.paths += queue.len() as u64;
-        for depth in 0..est.max_depth {
+        for depth in 0..ctx.est.max_depth {
             if queue.is_empty() {
                 break;
             }
-            let last = depth + 1 == est.max_depth;
+            let last = depth + 1 == ctx.est.max_depth;
             counters.rays += queue.len() as u64;
-            time.time(Stage::Intersect, || {
-                intersect::intersect(queue, &self.bvh, tables.epsilon, rays)
-            });
+            time.time(Stage::Intersect, || intersect::intersect(queue, &ctx));
             time.time(Stage::Shade, || {
-                shade::shade(queue, tables, lights, est);
-                shade::record_aovs(queue, tables, depth);
+                shade::shade(queue, &ctx);
+                shade::record_aovs(queue, ctx.tables, depth);
             });
             counters.invalid_samples += time.time(Stage::Retire, || {
-                retire::retire(queue, (sampler, est), depth, last, job)
+                retire::retire(queue, &ctx, depth, last, job)
             });
             if last {
                 continue;
             }
-            let bins = time.time(Stage::Sort, || sort::sort_by_model(queue, tables));
-            if est.samples_lights() {
+            let bins = time.time(Stage::Sort, || sort::sort_by_model(queue, ctx.tables));
+            if ctx.est.samples_lights() {
                 time.time(Stage::Light, || {
-                    light::sample_lights(queue, &bins, (sampler, est), (tables, lights), shadows)
+                    light::sample_lights(queue, &bins, &ctx, shadows)
                 });
                 let shadow_rays = time.time(Stage::Shadow, || {
-                    shadow::shadow(queue, shadows, &self.bvh, tables.epsilon)
+                    shadow::shadow(queue, shadows, ctx.bvh, ctx.tables.epsilon)
                 });
                 counters.rays += shadow_rays;
                 counters.shadow_rays += shadow_rays;
             }
-            time.time(Stage::Bounce, || {
-                bounce::bounce(queue, &bins, sampler, tables, est)
-            });
+            time.time(Stage::Bounce, || bounce::bounce(queue, &bins, &ctx));
         }
     }
 }

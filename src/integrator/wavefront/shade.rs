@@ -1,17 +1,19 @@
 //! Stage *shade*: add what each hit surface emits towards the ray.
 
+use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
 use super::tables::Tables;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::{facing, shading_facing};
-use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, emission_weight};
+use crate::integrator::nee::emission_weight;
+use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 
 /// For every path whose ray hit a surface from its front side:
 /// radiance += throughput × emitted radiance × its MIS weight (1 unless
 /// the estimator samples lights too, see [`emission_weight`]).
-pub fn shade<P>(queue: &mut PathQueue<P>, tables: &Tables, lights: &Lights, estimator: &Estimator) {
+pub fn shade<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
+    let (tables, lights, estimator) = (ctx.tables, ctx.lights, ctx.est);
     let n = queue.len();
     // Columns cut to the live rows: the loop below needs no bounds checks.
     let hit = &queue.hit[..n];
