@@ -6,6 +6,7 @@ use crate::film::ranges::MissingSamples;
 use crate::fs::FileError;
 use crate::run::shard::ShardError;
 use crate::scene::SceneError;
+use crate::scene::format::ForeignScene;
 
 /// Anything that can stop a render, each kind with what the user needs to
 /// fix it.
@@ -15,6 +16,10 @@ pub enum Error {
     /// line and field.
     #[error("scene error: {0}")]
     Scene(#[from] SceneError),
+    /// A file given as a scene is of another format (OBJ, glTF, pbrt…):
+    /// says what it is and what wavetrace reads.
+    #[error(transparent)]
+    ForeignScene(#[from] ForeignScene),
     /// A setting is impossible (refused before any work starts).
     #[error("invalid setting: {0}")]
     Settings(String),

@@ -61,6 +61,15 @@ pub enum Command {
     Denoise(DenoiseArgs),
 }
 
+/// Load the scene file at `path`; a file of another format (an OBJ mesh,
+/// glTF, pbrt…) is refused with an error that says what it is.
+pub(crate) fn load_scene(path: &std::path::Path) -> Result<crate::scene::Scene> {
+    if let Some(foreign) = crate::scene::format::foreign_format(path) {
+        return Err(foreign.into());
+    }
+    Ok(crate::scene::Scene::load(path)?)
+}
+
 /// Run the command line. Returns the process exit status: 0 when the
 /// outputs were written, 128 + the signal number (130 for SIGINT, 143 for
 /// SIGTERM) when a signal stopped the render (after saving the checkpoint).

@@ -248,11 +248,13 @@ struct Job {
     denoiser: Option<Denoiser>,
     /// `--keep-noisy`.
     keep_noisy: Option<PathBuf>,
+    /// The AOVs' files beside a PNG or PFM `--out`.
+    aov_files: Vec<PathBuf>,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
     let scene = match &args.scene {
-        Some(path) => Scene::load(path)?,
+        Some(path) => crate::cli::load_scene(path)?,
         None => Scene::cornell(),
     };
     let profile = match &args.profile {
@@ -506,6 +508,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         reference,
         denoiser,
         keep_noisy: args.keep_noisy,
+        aov_files,
     })
 }
 
@@ -573,6 +576,9 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
     };
     let quiet = job.quiet || !std::io::stderr().is_terminal();
     let s = &job.settings;
+    if let Some(warning) = job.scene.light_warning() {
+        eprintln!("warning: {warning}");
+    }
     if job.check {
         // What would be rendered, on stdout: the scene, settings, shard,
         // resume and outputs are all checked by now (and the engine below).
@@ -646,6 +652,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         None => Vec::new(), // written by `write_output`
     };
     let aovs: Vec<(Aov, &[[f32; 3]])> = aov_images.iter().map(|(a, p)| (*a, &p[..])).collect();
+    let noisy_rgb = film.to_rgb();
     let denoised = match (&mut job.denoiser, report.stop) {
         (Some(denoiser), Stop::Complete | Stop::TimeLimit) => {
             let t = Instant::now();
@@ -654,7 +661,8 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
                 albedo: layer(Aov::Albedo).expect("--denoise accumulates albedo"),
                 normal: layer(Aov::Normal).expect("--denoise accumulates normal"),
             };
-            let rgb = denoiser.denoise(film.width, film.height, &film.to_rgb(), Some(aux))?;
+            let rgb = denoiser.denoise(film.width, film.height, &noisy_rgb, Some(aux))?;
+            stages.denoise = t.elapsed().as_secs_f64();
             if !quiet {
                 eprintln!(
                     "denoise: with albedo and normal, in {:.3} s ({})",
@@ -685,7 +693,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
                 } else {
                     &[]
                 };
-                write_image_with_aovs(&path, size, &film.to_rgb(), layers)
+                write_image_with_aovs(&path, size, &noisy_rgb, layers)
             }
             _ => write_output(&path, film, &job.meta),
         };
@@ -727,10 +735,17 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
             0.0
         }
     };
+    // The errors of the image written (denoised, with --denoise), and with
+    // --denoise those of the noisy image too.
+    let written = denoised.as_ref().unwrap_or(&noisy_rgb);
     let errors = job
         .reference
         .as_ref()
-        .map(|(_, rgb)| ImageErrors::of(&film.to_rgb(), rgb));
+        .map(|(_, reference)| ImageErrors::of(written, reference));
+    let noisy_errors = match (&job.reference, &denoised) {
+        (Some((_, reference)), Some(_)) => Some(ImageErrors::of(&noisy_rgb, reference)),
+        _ => None,
+    };
     let stats = RenderStats {
         version: env!("CARGO_PKG_VERSION"),
         git_commit: crate::cli::stats::GIT_COMMIT,
@@ -789,6 +804,9 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
             .map(|(path, _)| path.display().to_string()),
         mse: errors.map(|e| e.mse),
         relmse: errors.map(|e| e.relmse),
+        denoised: denoised.is_some(),
+        noisy_mse: noisy_errors.map(|e| e.mse),
+        noisy_relmse: noisy_errors.map(|e| e.relmse),
     };
     if film.invalid_samples > 0 {
         eprintln!(
@@ -796,10 +814,22 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
             film.invalid_samples
         );
     }
-    println!("{}", summary(&job, &report, &stats));
+    if matches!(report.stop, Stop::Complete | Stop::TimeLimit)
+        && written.iter().all(|p| *p == [0.0; 3])
+    {
+        eprintln!(
+            "warning: the image is entirely black: no path found a light{}",
+            if job.scene.light_warning().is_some() {
+                " (see the warning above)"
+            } else {
+                "; is the camera inside a closed object, or looking away from the scene?"
+            }
+        );
+    }
     if let Some(path) = &job.stats {
         write_atomic(path, |w| w.write_all(stats.to_json().as_bytes()))?;
     }
+    println!("{}", summary(&job, &report, &stats));
     Ok(ExitCode::from(report.stop.exit_status()))
 }
 
@@ -836,14 +866,25 @@ fn describe(job: &Job) -> String {
     )
 }
 
-/// The files a render writes at the end, comma-separated.
+/// The files a render writes at the end, comma-separated: `--out` (said
+/// to be denoised with `--denoise`), its AOV files, `--keep-noisy`,
+/// `--partial` and `--stats`.
 fn outputs(job: &Job) -> String {
-    let files: Vec<String> = job
-        .out
+    let mut files: Vec<String> = Vec::new();
+    if let Some(out) = &job.out {
+        let denoised = if job.denoiser.is_some() {
+            " (denoised)"
+        } else {
+            ""
+        };
+        files.push(format!("{}{denoised}", out.display()));
+    }
+    let noisy = job
+        .keep_noisy
         .iter()
-        .chain(&job.partial)
-        .map(|p| p.display().to_string())
-        .collect();
+        .map(|p| format!("{} (noisy)", p.display()));
+    let rest = job.aov_files.iter().chain(&job.partial).chain(&job.stats);
+    files.extend(noisy.chain(rest.map(|p| p.display().to_string())));
     files.join(", ")
 }
 
@@ -885,8 +926,19 @@ fn summary(job: &Job, report: &crate::run::session::SessionReport, stats: &Rende
             } else {
                 String::new()
             };
+            let noisy = match stats.noisy_relmse {
+                Some(noisy) => format!("; the noisy image's relMSE {noisy:.4e}"),
+                None => String::new(),
+            };
             let errors = match (stats.relmse, stats.mse) {
-                (Some(relmse), Some(mse)) => format!(", relMSE {relmse:.4e} (MSE {mse:.4e})"),
+                (Some(relmse), Some(mse)) => {
+                    let of = if stats.denoised {
+                        " of the denoised image"
+                    } else {
+                        ""
+                    };
+                    format!(", relMSE{of} {relmse:.4e} (MSE {mse:.4e}{noisy})")
+                }
                 _ => String::new(),
             };
             format!(

@@ -126,11 +126,19 @@ pub struct RenderStats {
     pub partial: Option<String>,
     /// The `--reference` image, if any.
     pub reference: Option<String>,
-    /// The result's mean squared error against `reference`.
+    /// The mean squared error of the image written (denoised, with
+    /// `--denoise`) against `reference`.
     pub mse: Option<f64>,
-    /// The result's relative mean squared error against `reference`:
-    /// mean of `(a - r)² / (r² + 0.01)` over pixels and channels.
+    /// The relative mean squared error of the image written against
+    /// `reference`: mean of `(a - r)² / (r² + 0.01)` over pixels and
+    /// channels.
     pub relmse: Option<f64>,
+    /// Whether the image written was denoised (`--denoise`).
+    pub denoised: bool,
+    /// With `--denoise` and `--reference`: the noisy image's MSE.
+    pub noisy_mse: Option<f64>,
+    /// With `--denoise` and `--reference`: the noisy image's relMSE.
+    pub noisy_relmse: Option<f64>,
 }
 
 /// Wall-clock seconds of the stages of a run.
@@ -147,6 +155,8 @@ pub struct Stages {
     pub checkpoint: f64,
     /// Writing partial images (`--write-partial`).
     pub partial_images: f64,
+    /// Denoising the final image (`--denoise`).
+    pub denoise: f64,
     /// Writing the final outputs: `--out` and the `--partial` file.
     pub output: f64,
 }

@@ -5,6 +5,8 @@
 
 pub mod camera;
 pub mod file;
+pub mod format;
+pub mod light_check;
 pub mod material;
 pub mod mesh;
 pub mod obj;
@@ -14,6 +16,7 @@ use camera::Camera;
 use glam::Vec3;
 
 pub use file::SceneError;
+pub use light_check::LightWarning;
 pub use material::{Material, Model};
 pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
 

@@ -1,0 +1,168 @@
+//! A check of a scene's lights before it is rendered: a scene with no
+//! emitter, or whose emitters all face away from every surface (emission
+//! is one-sided), renders black, which is worth saying before the render
+//! rather than after.
+
+use super::Scene;
+use glam::Vec3;
+
+/// What is wrong with a scene's lights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightWarning {
+    /// No material of the scene's surfaces emits.
+    NoLight,
+    /// Every emitter's front side faces away from every other surface: the
+    /// light reaches nothing (each of `emitters` triangles or spheres).
+    FacesNothing {
+        /// How many emitting triangles and spheres there are.
+        emitters: usize,
+    },
+}
+
+impl std::fmt::Display for LightWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NoLight => f.write_str(
+                "the scene has no light: no surface's material has an emission, and rays that \
+                 leave the scene return black, so the image will be black",
+            ),
+            Self::FacesNothing { emitters } => write!(
+                f,
+                "no light faces any surface: emission is one-sided, and the front of every \
+                 emitting surface ({emitters} triangle(s) or sphere(s)) faces away from the rest \
+                 of the scene, so their light reaches nothing; list the light's vertices in the \
+                 other order (or set front_face), see scenes/README.md"
+            ),
+        }
+    }
+}
+
+/// Emitters examined before the check gives up (and says nothing): each
+/// costs a pass over the scene's vertices, and the first one that faces a
+/// surface ends the check.
+const MAX_EMITTERS_CHECKED: usize = 64;
+
+impl Scene {
+    /// What is wrong with the scene's lights, if anything: no emitter at
+    /// all, or none whose front side faces any other surface (some vertex
+    /// of another primitive strictly in front of an emitting triangle's
+    /// plane; some point of another primitive outside an emitting sphere).
+    pub fn light_warning(&self) -> Option<LightWarning> {
+        let emits = |m: u32| self.materials[m as usize].is_emissive();
+        let triangles: Vec<usize> = (0..self.triangles.len())
+            .filter(|&i| emits(self.triangles[i].material))
+            .collect();
+        let spheres: Vec<usize> = (0..self.spheres.len())
+            .filter(|&i| emits(self.spheres[i].material))
+            .collect();
+        let emitters = triangles.len() + spheres.len();
+        if emitters == 0 {
+            return Some(LightWarning::NoLight);
+        }
+        if emitters > MAX_EMITTERS_CHECKED {
+            return None;
+        }
+        let eps = 1e-6 * self.extent();
+        let faces_something = |front: &dyn Fn(Vec3, f32) -> bool,
+                               skip_triangle: Option<usize>,
+                               skip_sphere: Option<usize>| {
+            let by_triangles = self
+                .triangles
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| Some(*i) != skip_triangle)
+                .any(|(_, t)| t.v.iter().any(|&p| front(p, 0.0)));
+            by_triangles
+                || self
+                    .spheres
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| Some(*i) != skip_sphere)
+                    .any(|(_, s)| front(s.center, s.radius))
+        };
+        let any_triangle = triangles.iter().any(|&i| {
+            let t = &self.triangles[i];
+            // A point (or a ball of radius r about it) in front of the plane.
+            let front = |p: Vec3, r: f32| t.normal.dot(p - t.v[0]) + r > eps;
+            faces_something(&front, Some(i), None)
+        });
+        let any_sphere = || {
+            spheres.iter().any(|&i| {
+                let s = &self.spheres[i];
+                let front = |p: Vec3, r: f32| (p - s.center).length() + r > s.radius + eps;
+                faces_something(&front, None, Some(i))
+            })
+        };
+        if any_triangle || any_sphere() {
+            None
+        } else {
+            Some(LightWarning::FacesNothing { emitters })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cornell_box_is_lit() {
+        assert_eq!(Scene::cornell().light_warning(), None);
+    }
+
+    /// A floor and a square light above it, its corners listed `light`.
+    fn floor_and_light(light: &str, emission: &str) -> Scene {
+        let text = format!(
+            "[camera]\nposition = [0.0, 1.5, -4.0]\nlook_at = [0.0, 0.5, 0.0]\nup = [0.0, 1.0, 0.0]\n\
+             vfov_deg = 40.0\nwidth = 32\nheight = 24\n\
+             [materials.grey]\nreflectance = [0.7, 0.7, 0.7]\n\
+             [materials.lamp]\nreflectance = [0.0, 0.0, 0.0]\nemission = {emission}\n\
+             [[quad]]\nmaterial = \"grey\"\n\
+             vertices = [[-3.0, 0.0, -3.0], [-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0]]\n\
+             [[quad]]\nmaterial = \"lamp\"\nvertices = {light}\n"
+        );
+        super::super::file::parse(&text, "test.toml").unwrap()
+    }
+
+    const DOWN: &str = "[[-0.5, 3.0, -0.5], [0.5, 3.0, -0.5], [0.5, 3.0, 0.5], [-0.5, 3.0, 0.5]]";
+    const UP: &str = "[[-0.5, 3.0, 0.5], [0.5, 3.0, 0.5], [0.5, 3.0, -0.5], [-0.5, 3.0, -0.5]]";
+
+    #[test]
+    fn a_light_turned_away_faces_nothing() {
+        assert_eq!(
+            floor_and_light(DOWN, "[30.0, 30.0, 30.0]").light_warning(),
+            None
+        );
+        assert_eq!(
+            floor_and_light(UP, "[30.0, 30.0, 30.0]").light_warning(),
+            Some(LightWarning::FacesNothing { emitters: 2 })
+        );
+        // A light that faces a surface only a little in front of it (the
+        // Cornell box's, turned to its ceiling 0.004 away) does light it.
+        let mut scene = Scene::cornell();
+        for t in &mut scene.triangles {
+            if scene.materials[t.material as usize].is_emissive() {
+                t.normal = -t.normal;
+            }
+        }
+        assert_eq!(scene.light_warning(), None);
+    }
+
+    #[test]
+    fn an_emitting_sphere_faces_what_is_outside_it() {
+        let mut scene = floor_and_light(UP, "[30.0, 30.0, 30.0]");
+        let lamp = scene.triangles.last().unwrap().material;
+        scene.spheres.push(crate::scene::Sphere {
+            center: Vec3::new(0.0, 1.0, 0.0),
+            radius: 0.5,
+            material: lamp,
+        });
+        assert_eq!(scene.light_warning(), None);
+    }
+
+    #[test]
+    fn a_scene_without_emission_has_no_light() {
+        let scene = floor_and_light(DOWN, "[0.0, 0.0, 0.0]");
+        assert_eq!(scene.light_warning(), Some(LightWarning::NoLight));
+    }
+}
