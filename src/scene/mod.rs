@@ -11,6 +11,7 @@ pub mod material;
 pub mod mesh;
 pub mod obj;
 pub mod options;
+pub mod texture;
 
 use camera::Camera;
 use glam::Vec3;

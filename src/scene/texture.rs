@@ -1,0 +1,471 @@
+//! Textures: images decoded once at load and looked up by texture
+//! coordinates, the same way by both engines.
+//!
+//! The conventions are glTF 2.0's (which other renderers and viewers
+//! share):
+//!
+//! - **Coordinates.** `(0, 0)` is the top-left corner of the image and
+//!   `(1, 1)` the bottom-right one: `u` runs along a row (to the right),
+//!   `v` down a column. Texel `(i, j)` (column `i`, row `j`) has its centre
+//!   at `((i + ½)/W, (j + ½)/H)`.
+//! - **Filters.** [`Filter::Nearest`] takes the texel the point lies in,
+//!   `(⌊uW⌋, ⌊vH⌋)`, with no blending between texels. [`Filter::Linear`]
+//!   is bilinear between the four texels whose centres surround the point:
+//!   with `x = uW − ½`, `i₀ = ⌊x⌋` and `fx = x − i₀` (likewise `y`, `j₀`,
+//!   `fy`), it mixes texels `i₀, i₀ + 1` by `fx` and rows `j₀, j₀ + 1` by
+//!   `fy`. There are no mipmaps: a sampler's minification filter is read
+//!   as its magnification filter.
+//! - **Wrap modes**, per axis and by texel index (so a wrapped neighbour of
+//!   a bilinear lookup is wrapped too): [`Wrap::Repeat`] takes `i mod W`,
+//!   [`Wrap::ClampToEdge`] clamps `i` to `[0, W − 1]`,
+//!   [`Wrap::MirroredRepeat`] takes `m = i mod 2W` and then `m` or
+//!   `2W − 1 − m`, whichever lies in `[0, W)`.
+//! - **Colour and data.** Colour textures (base colour, emissive) are
+//!   decoded with the sRGB transfer curve of IEC 61966-2-1 (not a 2.2
+//!   gamma), data textures (metallic-roughness, normal) linearly as
+//!   `value / 255`; alpha is always linear. Each texture holds the 256
+//!   decoded values of its curve in a table, so every texel value is
+//!   decoded once, at load, and filtering mixes decoded (linear) values.
+//! - **`KHR_texture_transform`**, as the extension writes it:
+//!   `uv′ = T · R · S · uv` with `T` the offset, `R = [[cos r, sin r],
+//!   [−sin r, cos r]]` and `S` the scale ([`UvTransform`]), applied before
+//!   the wrap.
+//!
+//! **Memory.** [`BYTES_PER_TEXEL`] = 4 bytes a texel (RGBA, 8 bits a
+//! channel; images of 16 bits a channel are rounded to 8 bits, grey images
+//! are expanded to RGB), plus a table of 256 `f32` (1 KiB) a texture.
+//!
+//! **Lanes.** [`Texture::sample_lanes`] looks up 8 or 16 points at a time
+//! for the wavefront engine; a texture lookup is a gather, so it runs
+//! [`Texture::sample`] lane by lane, and gives its bits exactly.
+
+use crate::accel::simd::Lanes;
+use std::fmt;
+
+/// What a texel costs in memory: RGBA, one byte a channel.
+pub const BYTES_PER_TEXEL: usize = 4;
+
+/// The largest width or height of a texture image, in texels.
+pub const MAX_SIDE: u32 = 16_384;
+
+/// The most memory the decoding of one image may allocate, in bytes.
+pub const MAX_DECODE_BYTES: u64 = 1 << 30;
+
+/// How texel values are decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColourSpace {
+    /// The sRGB transfer curve (colour textures: base colour, emissive).
+    Srgb,
+    /// `value / 255` (data textures: metallic-roughness, normal).
+    Linear,
+}
+
+/// How a coordinate outside `[0, 1)` is brought back into the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Wrap {
+    /// The image repeats (glTF `REPEAT`, 10497, the default).
+    #[default]
+    Repeat,
+    /// The edge texels extend outward (glTF `CLAMP_TO_EDGE`, 33071).
+    ClampToEdge,
+    /// The image repeats, every other copy mirrored (glTF
+    /// `MIRRORED_REPEAT`, 33648).
+    MirroredRepeat,
+}
+
+impl Wrap {
+    /// The wrap mode of a glTF sampler's `wrapS`/`wrapT` code.
+    pub fn from_gl(code: u32) -> Option<Self> {
+        match code {
+            10497 => Some(Wrap::Repeat),
+            33071 => Some(Wrap::ClampToEdge),
+            33648 => Some(Wrap::MirroredRepeat),
+            _ => None,
+        }
+    }
+
+    /// The texel index `i` brought into `[0, n)` (`n ≥ 1`).
+    #[inline]
+    fn index(self, i: i64, n: usize) -> usize {
+        let n = n as i64;
+        let k = match self {
+            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::ClampToEdge => i.clamp(0, n - 1),
+            Wrap::MirroredRepeat => {
+                let m = i.rem_euclid(2 * n);
+                if m < n { m } else { 2 * n - 1 - m }
+            }
+        };
+        k as usize
+    }
+}
+
+/// How texels are combined.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Filter {
+    /// The texel the point lies in (glTF `NEAREST`, 9728, and the
+    /// `NEAREST_MIPMAP_*` minification filters).
+    Nearest,
+    /// Bilinear between the four nearest texel centres (glTF `LINEAR`,
+    /// 9729, and the `LINEAR_MIPMAP_*` filters; the default).
+    #[default]
+    Linear,
+}
+
+impl Filter {
+    /// The filter of a glTF sampler's `magFilter` or `minFilter` code.
+    pub fn from_gl(code: u32) -> Option<Self> {
+        match code {
+            9728 | 9984 | 9986 => Some(Filter::Nearest),
+            9729 | 9985 | 9987 => Some(Filter::Linear),
+            _ => None,
+        }
+    }
+}
+
+/// How a texture is looked up: a wrap mode per axis and a filter.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sampler {
+    /// The wrap mode along `u` (glTF `wrapS`).
+    pub wrap_u: Wrap,
+    /// The wrap mode along `v` (glTF `wrapT`).
+    pub wrap_v: Wrap,
+    /// The filter.
+    pub filter: Filter,
+}
+
+/// `KHR_texture_transform`: `uv′ = T · R · S · uv`, kept as the 2 × 3
+/// matrix `[[a, b, c], [d, e, f]]`: `u′ = a u + b v + c`,
+/// `v′ = d u + e v + f`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    m: [f32; 6],
+}
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl UvTransform {
+    /// No transform.
+    pub const IDENTITY: Self = Self {
+        m: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+    };
+
+    /// The transform of an offset, a rotation `r` (radians) and a scale:
+    /// `T · R · S` with `R = [[cos r, sin r], [−sin r, cos r]]`, so
+    /// `u′ = cos r · sx · u + sin r · sy · v + ox` and
+    /// `v′ = −sin r · sx · u + cos r · sy · v + oy`.
+    pub fn new(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Self {
+        let (s, c) = (rotation as f64).sin_cos();
+        let (sx, sy) = (scale[0] as f64, scale[1] as f64);
+        Self {
+            m: [
+                (c * sx) as f32,
+                (s * sy) as f32,
+                offset[0],
+                (-s * sx) as f32,
+                (c * sy) as f32,
+                offset[1],
+            ],
+        }
+    }
+
+    /// Whether it is the identity.
+    pub fn is_identity(&self) -> bool {
+        *self == Self::IDENTITY
+    }
+
+    /// The transformed coordinates (each a sum of fused multiply-adds).
+    #[inline]
+    pub fn apply(&self, [u, v]: [f32; 2]) -> [f32; 2] {
+        let m = &self.m;
+        [
+            m[0].mul_add(u, m[1].mul_add(v, m[2])),
+            m[3].mul_add(u, m[4].mul_add(v, m[5])),
+        ]
+    }
+}
+
+/// Why an image could not become a texture.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TextureError(pub String);
+
+impl fmt::Display for TextureError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for TextureError {}
+
+/// An image, decoded: RGBA texels of one byte a channel, row by row from
+/// the top, with the table that turns a byte into its value.
+#[derive(Clone, PartialEq)]
+pub struct Texture {
+    width: usize,
+    height: usize,
+    texels: Vec<[u8; 4]>,
+    space: ColourSpace,
+    table: Box<[f32; 256]>,
+}
+
+impl fmt::Debug for Texture {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Texture")
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("space", &self.space)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The sRGB transfer curve (IEC 61966-2-1) from an encoded value in
+/// `[0, 1]` to a linear one.
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Texture {
+    /// A texture of `width × height` RGBA texels, row by row from the top.
+    pub fn from_rgba8(
+        width: usize,
+        height: usize,
+        texels: Vec<[u8; 4]>,
+        space: ColourSpace,
+    ) -> Result<Self, TextureError> {
+        if width == 0 || height == 0 || width > MAX_SIDE as usize || height > MAX_SIDE as usize {
+            return Err(TextureError(format!(
+                "an image of {width} × {height} texels (each side must be 1 to {MAX_SIDE})"
+            )));
+        }
+        if texels.len() != width * height {
+            return Err(TextureError(format!(
+                "{} texels for an image of {width} × {height}",
+                texels.len()
+            )));
+        }
+        let table = Box::new(std::array::from_fn(|k| match space {
+            ColourSpace::Srgb => srgb_to_linear(k as f64 / 255.0) as f32,
+            ColourSpace::Linear => k as f32 / 255.0,
+        }));
+        Ok(Self {
+            width,
+            height,
+            texels,
+            space,
+            table,
+        })
+    }
+
+    /// Decodes a PNG or JPEG image (the format is found from its first
+    /// bytes), refusing images wider or taller than [`MAX_SIDE`] or whose
+    /// decoding would allocate more than [`MAX_DECODE_BYTES`] before
+    /// allocating them.
+    pub fn decode(bytes: &[u8], space: ColourSpace) -> Result<Self, TextureError> {
+        use image::{ImageFormat, ImageReader, Limits};
+        let reader = ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| TextureError(format!("cannot read the image: {e}")))?;
+        match reader.format() {
+            Some(ImageFormat::Png | ImageFormat::Jpeg) => {}
+            Some(f) => {
+                return Err(TextureError(format!(
+                    "an image in {f:?} format (PNG and JPEG are supported)"
+                )));
+            }
+            None => {
+                return Err(TextureError(
+                    "the data is not a PNG or JPEG image".to_string(),
+                ));
+            }
+        }
+        let mut limits = Limits::default();
+        limits.max_image_width = Some(MAX_SIDE);
+        limits.max_image_height = Some(MAX_SIDE);
+        limits.max_alloc = Some(MAX_DECODE_BYTES);
+        let mut reader = reader;
+        reader.limits(limits);
+        let image = reader
+            .decode()
+            .map_err(|e| TextureError(format!("cannot decode the image: {e}")))?;
+        let rgba = image.into_rgba8();
+        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+        let texels = rgba
+            .as_raw()
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect();
+        Self::from_rgba8(w, h, texels, space)
+    }
+
+    /// The width in texels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// The height in texels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// How its values are decoded.
+    pub fn space(&self) -> ColourSpace {
+        self.space
+    }
+
+    /// The memory its texels take, in bytes ([`BYTES_PER_TEXEL`] a texel).
+    pub fn bytes(&self) -> usize {
+        self.texels.len() * BYTES_PER_TEXEL
+    }
+
+    /// Texel `(i, j)` (column, row; both in range), decoded: RGB through
+    /// the table, alpha linear.
+    #[inline]
+    pub fn texel(&self, i: usize, j: usize) -> [f32; 4] {
+        let t = self.texels[j * self.width + i];
+        let tb = &self.table;
+        [
+            tb[t[0] as usize],
+            tb[t[1] as usize],
+            tb[t[2] as usize],
+            t[3] as f32 / 255.0,
+        ]
+    }
+
+    /// The value at the texture coordinates `(u, v)` by `sampler`, decoded
+    /// RGBA. Coordinates that are not finite read as 0.
+    #[inline]
+    pub fn sample(&self, sampler: Sampler, u: f32, v: f32) -> [f32; 4] {
+        let u = if u.is_finite() { u } else { 0.0 };
+        let v = if v.is_finite() { v } else { 0.0 };
+        let (w, h) = (self.width as f32, self.height as f32);
+        match sampler.filter {
+            Filter::Nearest => {
+                let i = sampler.wrap_u.index((u * w).floor() as i64, self.width);
+                let j = sampler.wrap_v.index((v * h).floor() as i64, self.height);
+                self.texel(i, j)
+            }
+            Filter::Linear => {
+                let x = u.mul_add(w, -0.5);
+                let y = v.mul_add(h, -0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                let i0 = sampler.wrap_u.index(x0, self.width);
+                let i1 = sampler.wrap_u.index(x0.saturating_add(1), self.width);
+                let j0 = sampler.wrap_v.index(y0, self.height);
+                let j1 = sampler.wrap_v.index(y0.saturating_add(1), self.height);
+                let (a, b) = (self.texel(i0, j0), self.texel(i1, j0));
+                let (c, d) = (self.texel(i0, j1), self.texel(i1, j1));
+                std::array::from_fn(|k| {
+                    let top = (b[k] - a[k]).mul_add(fx, a[k]);
+                    let bottom = (d[k] - c[k]).mul_add(fx, c[k]);
+                    (bottom - top).mul_add(fy, top)
+                })
+            }
+        }
+    }
+
+    /// [`sample`](Self::sample) for every lane of `u` and `v` (8 or 16
+    /// lanes): the same bits, lane by lane, as channels R, G, B, A.
+    #[inline]
+    pub fn sample_lanes<L: Lanes>(&self, sampler: Sampler, u: L, v: L) -> [L; 4] {
+        const MAX: usize = 16;
+        assert!(L::LANES <= MAX);
+        let (mut us, mut vs) = ([0.0f32; MAX], [0.0f32; MAX]);
+        u.write_to(&mut us[..L::LANES]);
+        v.write_to(&mut vs[..L::LANES]);
+        let mut out = [[0.0f32; MAX]; 4];
+        for l in 0..L::LANES {
+            let t = self.sample(sampler, us[l], vs[l]);
+            for (c, value) in t.into_iter().enumerate() {
+                out[c][l] = value;
+            }
+        }
+        out.map(|c| L::from_slice(&c[..L::LANES], 0.0))
+    }
+}
+
+/// A texture as a material uses it: which texture, which set of texture
+/// coordinates (`TEXCOORD_0` or `_1`), how it is sampled and transformed,
+/// and a factor (a normal texture's `scale`; 1 elsewhere).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into the scene's textures.
+    pub texture: u32,
+    /// The set of texture coordinates: 0 or 1.
+    pub tex_coord: u32,
+    /// How it is sampled.
+    pub sampler: Sampler,
+    /// `KHR_texture_transform` (identity where absent).
+    pub transform: UvTransform,
+    /// A normal texture's `scale` (1 for the others).
+    pub scale: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use crate::accel::simd::F32x16;
+    use crate::accel::simd::SimdWidth;
+    use wide::f32x8;
+
+    fn ramp() -> Texture {
+        // 5 × 3, every texel distinct in every channel.
+        let texels = (0..15u8)
+            .map(|k| [k * 17, 255 - k * 13, k * 7, 255 - k])
+            .collect();
+        Texture::from_rgba8(5, 3, texels, ColourSpace::Srgb).unwrap()
+    }
+
+    fn lanes_equal_scalar<L: Lanes>() {
+        let t = ramp();
+        let mut k = 0u32;
+        let mut next = || {
+            k = k.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (k >> 8) as f32 / (1u32 << 24) as f32 * 6.0 - 3.0
+        };
+        for wrap in [Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat] {
+            for filter in [Filter::Nearest, Filter::Linear] {
+                let s = Sampler {
+                    wrap_u: wrap,
+                    wrap_v: wrap,
+                    filter,
+                };
+                for _ in 0..500 {
+                    let us: Vec<f32> = (0..L::LANES).map(|_| next()).collect();
+                    let vs: Vec<f32> = (0..L::LANES).map(|_| next()).collect();
+                    let out = t.sample_lanes(s, L::from_slice(&us, 0.0), L::from_slice(&vs, 0.0));
+                    for l in 0..L::LANES {
+                        let want = t.sample(s, us[l], vs[l]);
+                        for c in 0..4 {
+                            assert_eq!(out[c].to_vec()[l].to_bits(), want[c].to_bits());
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_give_the_scalar_bits_at_8_and_16() {
+        lanes_equal_scalar::<f32x8>();
+        #[cfg(target_arch = "x86_64")]
+        if SimdWidth::W16.is_available() {
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+            fn at_16() {
+                lanes_equal_scalar::<F32x16>();
+            }
+            // SAFETY: the CPU has AVX-512 (checked just above).
+            unsafe { at_16() };
+        }
+    }
+}
