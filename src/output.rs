@@ -11,12 +11,15 @@
 //! exactly (a PNG would clamp normals, depths and variances). A PFM's
 //! depth repeats its one value in all three channels.
 
+pub mod view;
+
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
 use crate::fs::{FileError, write_atomic};
 use crate::scene::Aov;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use view::ViewTransform;
 
 /// The extension of accumulation (partial) files.
 pub const PARTIAL_EXTENSION: &str = "wtacc";
@@ -68,13 +71,26 @@ pub fn srgb8(rgb: &[[f32; 3]]) -> Vec<u8> {
 }
 
 /// Write a linear RGB image (row-major, row 0 at the top) in the format that
-/// `path`'s extension names, atomically.
+/// `path`'s extension names, atomically; a PNG with the standard view
+/// ([`write_image_viewed`]).
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
+    write_image_viewed(path, width, height, rgb, ViewTransform::default())
+}
+
+/// [`write_image`], a PNG through the exposure and view transform `view`
+/// (EXR and PFM images are linear: `view` does not touch them).
+pub fn write_image_viewed(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[[f32; 3]],
+    view: ViewTransform,
+) -> Result<()> {
     assert_eq!(rgb.len(), width as usize * height as usize);
     let format = ImageFormat::from_path(path)?;
     let written = match format {
         ImageFormat::Png => {
-            let bytes = srgb8(rgb);
+            let bytes = view.bytes(rgb);
             write_atomic(path, |w| {
                 image::write_buffer_with_format(
                     w,
@@ -163,15 +179,17 @@ pub fn aov_path(image: &Path, aov: Aov) -> Option<PathBuf> {
 
 /// Write a linear RGB image with AOV images `aovs` (each of the image's
 /// size), atomically, as the module's docs say: EXR layers, or PFM files
-/// beside a PNG or PFM. Without AOVs, exactly [`write_image`].
+/// beside a PNG or PFM (a PNG through `view`; the AOVs are linear
+/// always). Without AOVs, exactly [`write_image_viewed`].
 pub fn write_image_with_aovs(
     path: &Path,
     (width, height): (u32, u32),
     rgb: &[[f32; 3]],
     aovs: &[(Aov, &[[f32; 3]])],
+    view: ViewTransform,
 ) -> Result<()> {
     if aovs.is_empty() {
-        return write_image(path, width, height, rgb);
+        return write_image_viewed(path, width, height, rgb, view);
     }
     if ImageFormat::from_path(path)? == ImageFormat::Exr {
         let layers: Vec<ExrLayer<'_>> = aovs
@@ -187,7 +205,7 @@ pub fn write_image_with_aovs(
             .collect();
         return write_exr_layers(path, width, height, rgb, &layers);
     }
-    write_image(path, width, height, rgb)?;
+    write_image_viewed(path, width, height, rgb, view)?;
     for (aov, pixels) in aovs {
         let side = aov_path(path, *aov).expect("a PNG or PFM image");
         write_image(&side, width, height, pixels)?;
@@ -334,14 +352,25 @@ pub fn check_partial_path(path: &Path) -> Result<()> {
 
 /// Write `film` to `path`, atomically: a partial file for `.wtacc` (with
 /// the film's AOV sums), else an image in the format of the extension with
-/// the film's AOVs ([`write_image_with_aovs`]).
+/// the film's AOVs ([`write_image_with_aovs`]); a PNG with the standard
+/// view ([`write_output_viewed`]).
 pub fn write_output(path: &Path, film: &Film, meta: &AccMeta) -> Result<()> {
+    write_output_viewed(path, film, meta, ViewTransform::default())
+}
+
+/// [`write_output`], a PNG through the exposure and view transform `view`.
+pub fn write_output_viewed(
+    path: &Path,
+    film: &Film,
+    meta: &AccMeta,
+    view: ViewTransform,
+) -> Result<()> {
     if is_partial_path(path) {
         return Ok(film.save_with_meta(path, meta)?);
     }
     let images = film.aov_images();
     let aovs: Vec<(Aov, &[[f32; 3]])> = images.iter().map(|(a, p)| (*a, &p[..])).collect();
-    write_image_with_aovs(path, (film.width, film.height), &film.to_rgb(), &aovs)
+    write_image_with_aovs(path, (film.width, film.height), &film.to_rgb(), &aovs, view)
 }
 
 #[cfg(test)]

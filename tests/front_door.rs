@@ -91,3 +91,154 @@ fn a_light_that_faces_nothing_is_warned_about_before_and_after() {
         "{err}"
     );
 }
+
+#[test]
+fn help_is_grouped_with_short_flags_and_examples_that_run() {
+    let dir = TempDir::new("help");
+    for command in [&["--help"][..], &["render", "--help"][..]] {
+        let o = run_ok(&dir, command);
+        let help = String::from_utf8_lossy(&o.stdout).into_owned();
+        let mut at = 0;
+        for heading in [
+            "\nOutput:\n",
+            "\nQuality:\n",
+            "\nTime:\n",
+            "\nFarm:\n",
+            "\nTuning:\n",
+            "\nEXAMPLES:\n",
+        ] {
+            let found = help[at..]
+                .find(heading)
+                .unwrap_or_else(|| panic!("{heading:?} (in order) in {command:?}:\n{help}"));
+            at += found;
+        }
+        for flag in ["-o, --out", "-s, --spp", "-t, --threads", "-q, --quiet"] {
+            assert!(help.contains(flag), "{flag} in\n{help}");
+        }
+        // Each flag is described on its one line.
+        let spp = help.lines().find(|l| l.contains("--spp")).unwrap();
+        assert!(spp.contains("Samples per pixel"), "{spp}");
+    }
+    // Every render example of `--help` is a valid command line.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(root.join("scenes/cornell.toml"), dir.join("scene.toml")).unwrap();
+    let help = String::from_utf8_lossy(&run_ok(&dir, &["--help"]).stdout).into_owned();
+    let examples = &help[help.find("EXAMPLES:").unwrap()..];
+    let mut checked = 0;
+    for line in examples.lines() {
+        let Some(command) = line.trim_start().strip_prefix("wavetrace") else {
+            continue;
+        };
+        let words: Vec<&str> = command
+            .split("  ")
+            .next()
+            .unwrap()
+            .split_whitespace()
+            .collect();
+        if words
+            .first()
+            .is_some_and(|w| ["bench", "merge"].contains(w))
+        {
+            continue;
+        }
+        let mut args = words.clone();
+        args.push("--check");
+        let o = run(&dir, &args);
+        assert!(o.status.success(), "{line}: {}", stderr(&o));
+        checked += 1;
+    }
+    assert!(checked >= 5, "{checked} examples checked");
+}
+
+#[test]
+fn short_flags_are_the_long_ones() {
+    let dir = TempDir::new("short");
+    let size = ["--width", "16", "--height", "12"];
+    run_ok(
+        &dir,
+        &[&size[..], &["-s", "3", "-t", "1", "-o", "a.pfm", "-q"]].concat(),
+    );
+    run_ok(
+        &dir,
+        &[
+            &size[..],
+            &["--spp", "3", "--threads", "2", "--out", "b.pfm"],
+        ]
+        .concat(),
+    );
+    let a = std::fs::read(dir.join("a.pfm")).unwrap();
+    assert_eq!(a, std::fs::read(dir.join("b.pfm")).unwrap());
+}
+
+#[test]
+fn png_exposure_and_view_shape_pngs_only() {
+    use wavetrace::output::read_image;
+    use wavetrace::output::view::{View, ViewTransform};
+    let dir = TempDir::new("view");
+    let size = ["--width", "24", "--height", "16", "-s", "4"];
+    fn with<'a>(size: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
+        [size, extra].concat()
+    }
+    let with = |extra: &[&'static str]| with(&size, extra);
+    run_ok(&dir, &with(&["-o", "linear.pfm"]));
+    let linear = read_image(&dir.join("linear.pfm")).unwrap().rgb;
+    let png = |name: &str| image::open(dir.join(name)).unwrap().to_rgb8().into_raw();
+    let cases = [
+        (vec![], ViewTransform::default()),
+        (
+            vec!["--view", "agx"],
+            ViewTransform {
+                exposure: 0.0,
+                view: View::Agx,
+            },
+        ),
+        (
+            vec!["--exposure", "-1.5", "--view", "standard"],
+            ViewTransform {
+                exposure: -1.5,
+                view: View::Standard,
+            },
+        ),
+        (
+            vec!["--exposure", "2", "--view", "agx"],
+            ViewTransform {
+                exposure: 2.0,
+                view: View::Agx,
+            },
+        ),
+    ];
+    let mut seen = Vec::new();
+    for (i, (flags, view)) in cases.iter().enumerate() {
+        let name = format!("v{i}.png");
+        let mut args: Vec<&str> = size.to_vec();
+        args.extend(["-o", name.as_str()]);
+        args.extend(flags.iter().copied());
+        run_ok(&dir, &args);
+        let bytes = png(&name);
+        assert_eq!(bytes, view.bytes(&linear), "{flags:?}");
+        assert!(!seen.contains(&bytes), "{flags:?} changed nothing");
+        seen.push(bytes);
+    }
+    // EXR and PFM stay linear: the flags are refused for them.
+    for out in ["x.exr", "x.pfm", "x.wtacc"] {
+        let err = run_refused(&dir, &with(&["-o", out, "--view", "agx"]));
+        assert!(err.contains("PNG images only"), "{err}");
+        assert!(!dir.join(out).exists());
+    }
+    // merge takes them too.
+    run_ok(&dir, &with(&["--shard", "0/1", "--partial", "p.wtacc"]));
+    run_ok(
+        &dir,
+        &[
+            "merge",
+            "p.wtacc",
+            "-o",
+            "m.png",
+            "--view",
+            "agx",
+            "--exposure",
+            "2",
+        ],
+    );
+    assert_eq!(png("m.png"), png("v3.png"));
+}

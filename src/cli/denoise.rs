@@ -21,8 +21,11 @@ pub struct DenoiseArgs {
     pub input: PathBuf,
     /// The denoised image (.exr, .pfm or .png; a .pfm or .png gets the
     /// input's AOV layers as STEM.NAME.pfm files beside it).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, short = 'o', value_name = "FILE")]
     pub out: PathBuf,
+    /// The PNG view.
+    #[command(flatten)]
+    pub view: crate::cli::ViewArgs,
 }
 
 /// An image's pixels: row-major linear RGB (or XYZ), row 0 at the top.
@@ -47,6 +50,7 @@ pub(crate) fn aov_layers(path: &Path) -> Result<Vec<(Aov, Pixels)>> {
 /// Run `wavetrace denoise`.
 pub fn run(args: DenoiseArgs) -> Result<()> {
     check_output_format(&args.out)?;
+    let view = args.view.transform(Some(&args.out))?;
     if crate::output::is_partial_path(&args.out) {
         return Err(Error::Settings(format!(
             "{}: denoise writes an image (.exr, .pfm or .png)",
@@ -65,7 +69,7 @@ pub fn run(args: DenoiseArgs) -> Result<()> {
     let rgb = denoiser.denoise(image.width, image.height, &image.rgb, aux)?;
     let seconds = t.elapsed().as_secs_f64();
     let aovs: Vec<(Aov, &[[f32; 3]])> = layers.iter().map(|(a, p)| (*a, &p[..])).collect();
-    write_image_with_aovs(&args.out, (image.width, image.height), &rgb, &aovs)?;
+    write_image_with_aovs(&args.out, (image.width, image.height), &rgb, &aovs, view)?;
     println!(
         "denoise: {} ({}x{}, {}) -> {} in {seconds:.3} s",
         args.input.display(),

@@ -1,8 +1,9 @@
 //! `wavetrace merge`: partial files in, the whole render out.
 
+use crate::cli::ViewArgs;
 use crate::error::Result;
 use crate::fs::check_writable;
-use crate::output::{check_output_format, check_partial_path, write_output};
+use crate::output::{check_output_format, check_partial_path, write_output_viewed};
 use crate::run::merge::{check_outputs, merge_files};
 use clap::Args;
 use std::path::PathBuf;
@@ -17,7 +18,7 @@ pub struct MergeArgs {
     pub parts: Vec<PathBuf>,
     /// The merged output: an image (.png, .exr, .pfm) or a merged partial
     /// file (.wtacc).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, short = 'o', value_name = "FILE")]
     pub out: PathBuf,
     /// Also write the merged partial file (.wtacc), e.g. to merge it again
     /// later with more samples.
@@ -31,6 +32,9 @@ pub struct MergeArgs {
     /// not record it (files saved without shard information).
     #[arg(long, value_name = "N")]
     pub spp: Option<u32>,
+    /// The PNG view.
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 /// Run `wavetrace merge`: check the outputs, merge, then write.
@@ -41,6 +45,7 @@ pub fn run(args: MergeArgs) -> Result<()> {
     }
     check_outputs(&args.parts, &outputs)?;
     check_output_format(&args.out)?;
+    let view = args.view.transform(Some(&args.out))?;
     check_writable(&args.out)?;
     if let Some(p) = &args.partial {
         check_partial_path(p)?;
@@ -50,7 +55,7 @@ pub fn run(args: MergeArgs) -> Result<()> {
     if let Some(m) = &merged.missing {
         eprintln!("warning: --allow-partial: {}", m.describe());
     }
-    write_output(&args.out, &merged.film, &merged.meta)?;
+    write_output_viewed(&args.out, &merged.film, &merged.meta, view)?;
     if let Some(p) = &args.partial {
         merged.film.save_with_meta(p, &merged.meta)?;
     }

@@ -8,6 +8,7 @@ pub(crate) mod profile;
 pub(crate) mod progress;
 mod render;
 pub(crate) mod stats;
+mod view;
 
 use crate::error::Result;
 use clap::{Parser, Subcommand};
@@ -18,6 +19,28 @@ pub use converge::ConvergeArgs;
 pub use denoise::DenoiseArgs;
 pub use merge::MergeArgs;
 pub use render::{FarmArgs, RenderArgs};
+pub use view::ViewArgs;
+
+/// The help's closing section: examples, the exit statuses, where the
+/// details are.
+const AFTER_HELP: &str = "\
+EXAMPLES:
+  wavetrace                                  the built-in Cornell box, 256 spp -> cornell.png
+  wavetrace -s 16 -o preview.png             fewer samples, another file
+  wavetrace scene.toml -s 1024 -o out.exr    a scene of your own, linear EXR
+  wavetrace scene.toml --view agx --exposure 1
+                                             a PNG with Blender's AgX view, one stop brighter
+  wavetrace -s 4096 --time-limit 600 --checkpoint c.wtacc
+                                             as many samples as fit in 10 minutes, resumable
+  wavetrace -s 1024 --shard 0/4 --partial p0.wtacc
+                                             one of four farm shards; then `wavetrace merge`
+  wavetrace bench --quick                    benchmark this CPU
+
+Exit status: 0 when the outputs were written; 1 on an error (2 for a malformed
+command line); 130 (SIGINT) or 143 (SIGTERM) when a signal stopped the render
+after saving the checkpoint.
+
+Every flag is explained in docs/cli.md; the scene format in scenes/README.md.";
 
 /// wavetrace: a fast, reproducible CPU path tracer.
 #[derive(Debug, Parser)]
@@ -26,11 +49,7 @@ pub use render::{FarmArgs, RenderArgs};
     version,
     about,
     args_conflicts_with_subcommands = true,
-    after_help = "Exit status: 0 when the outputs were written (all samples, or as many as \
-                  --time-limit allowed), or when `merge` wrote its output; 1 on an error (2 for a malformed command line); 130 (SIGINT) or \
-                  143 (SIGTERM) when a signal stopped the render after its current pass, \
-                  the checkpoint saved. A second SIGINT/SIGTERM exits at once with status 1, \
-                  leaving the last checkpoint as it was."
+    after_help = AFTER_HELP
 )]
 pub struct Cli {
     /// What to do; `render` when omitted.
@@ -48,6 +67,7 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene (or one shard's sample range of it) to an image or
     /// a partial file.
+    #[command(after_help = AFTER_HELP)]
     Render(RenderArgs),
     /// Merge the partial files of shards into the image of the whole render.
     Merge(MergeArgs),

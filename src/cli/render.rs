@@ -1,6 +1,7 @@
 //! `wavetrace render`: flags, checks, the session, outputs and the summary.
 
 use crate::accel::simd::SimdWidth;
+use crate::cli::ViewArgs;
 use crate::cli::profile::Profile;
 use crate::cli::progress::ProgressBar;
 use crate::cli::stats::{RenderStats, Stages};
@@ -9,9 +10,10 @@ use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
 use crate::fs::{check_writable, same_file, write_atomic};
 use crate::metrics::ImageErrors;
+use crate::output::view::ViewTransform;
 use crate::output::{
     aov_path, check_output_format, check_partial_path, read_image, write_image_with_aovs,
-    write_output,
+    write_output_viewed,
 };
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::run::session::{Interrupt, Session, SessionOptions, Stop};
@@ -25,122 +27,110 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 /// Options of `wavetrace render`. Flags override the profile, which
-/// overrides the scene's defaults.
+/// overrides the scene's defaults. Each has a one-line description here;
+/// docs/cli.md tells the rest.
 #[derive(Debug, Default, Args)]
 pub struct RenderArgs {
     /// Scene file (TOML); the built-in Cornell box when omitted.
     pub scene: Option<PathBuf>,
-    /// Render preset: a built-in name (preview, default, seed-figure8) or a
-    /// path to a profile file.
-    #[arg(long, default_value = "default")]
-    pub profile: Option<String>,
-    /// Image width in pixels.
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height in pixels.
-    #[arg(long)]
-    pub height: Option<u32>,
-    /// Samples per pixel.
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Maximum path depth (the camera ray is depth 0).
-    #[arg(long)]
-    pub max_depth: Option<u32>,
-    /// Random seed.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Worker threads (default: SLURM_CPUS_PER_TASK if set, else all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Path tracer.
-    #[arg(long, value_parser = named(Engine::NAMES, |n| Engine::from_name(n).ok()))]
-    pub engine: Option<Engine>,
-    /// Estimator: report (the seed's: uniform hemisphere, no light
-    /// sampling), bsdf (cosine-weighted), nee (next-event estimation with
-    /// multiple importance sampling) [default: nee].
-    #[arg(long, value_parser = named(Integrator::NAMES, Integrator::from_name))]
-    pub integrator: Option<Integrator>,
-    /// Where the numbers come from: independent (PCG streams) or sobol
-    /// (Owen-scrambled Sobol points) [default: sobol].
-    #[arg(long, value_parser = named(SamplerKind::NAMES, SamplerKind::from_name))]
-    pub sampler: Option<SamplerKind>,
-    /// Russian roulette may end paths at vertices of this depth and deeper
-    /// (the camera ray's hit is depth 0); off by default, never with
-    /// --integrator report.
-    #[arg(long, value_name = "D")]
-    pub rr_depth: Option<u32>,
-    /// Lanes of the intersection kernels: 8 (AVX2) or 16 (AVX-512, where
-    /// the CPU has it) [default: the widest this CPU runs, or the
-    /// environment variable WAVETRACE_SIMD]. Never changes the image.
-    #[arg(long, value_name = "LANES", value_parser = parse_simd)]
-    pub simd: Option<SimdWidth>,
-    /// Paths per wavefront batch [default: 4096]. A tuning knob for
-    /// benchmarks: it never changes the image.
-    #[arg(long, value_name = "PATHS")]
-    pub batch_size: Option<usize>,
-    /// Output image: .png (8-bit sRGB), .exr or .pfm (linear float), or
-    /// .wtacc for a partial file. Default: the scene file's name with .png
-    /// (cornell.png), or none when --partial is given.
-    #[arg(long)]
+
+    /// The image: .png (8-bit sRGB), .exr or .pfm (linear float), or .wtacc
+    /// [default: SCENE.png].
+    #[arg(long, short = 'o', value_name = "FILE", help_heading = "Output")]
     pub out: Option<PathBuf>,
-    /// Write the render's figures as JSON to this file.
-    #[arg(long)]
+    /// Write the render's settings, times and speeds as JSON (docs/stats.md).
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
     pub stats: Option<PathBuf>,
-    /// A converged image of the same render (.exr or .pfm): the summary
-    /// and --stats then give the result's MSE and relMSE against it.
-    #[arg(long, value_name = "IMAGE")]
-    pub reference: Option<PathBuf>,
-    /// Print nothing but the final summary (no banner, no progress bar).
-    /// Without a terminal on stderr that is the default.
-    #[arg(long, short)]
+    /// Also accumulate these AOVs: albedo, normal, depth, variance (docs/aov.md).
+    #[arg(long, value_name = "LIST", value_parser = parse_aovs, help_heading = "Output")]
+    pub aov: Option<AovSet>,
+    /// Denoise the image with Intel Open Image Denoise (`pip install pyoidn`).
+    #[arg(long, help_heading = "Output")]
+    pub denoise: bool,
+    /// With --denoise: also write the noisy image to this file.
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "denoise",
+        help_heading = "Output"
+    )]
+    pub keep_noisy: Option<PathBuf>,
+    /// The PNG view: --exposure, --view.
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Print nothing but the summary line (and warnings); the default
+    /// without a terminal.
+    #[arg(long, short, help_heading = "Output")]
     pub quiet: bool,
-    /// Stop rendering, after whole sample passes, once the next pass would
-    /// not fit in this many seconds, and write the image with the samples
-    /// done; --spp stays the most that are rendered.
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+
+    /// Samples per pixel.
+    #[arg(long, short = 's', value_name = "N", help_heading = "Quality")]
+    pub spp: Option<u32>,
+    /// Image width in pixels [default: the scene's].
+    #[arg(long, value_name = "W", help_heading = "Quality")]
+    pub width: Option<u32>,
+    /// Image height in pixels [default: the scene's].
+    #[arg(long, value_name = "H", help_heading = "Quality")]
+    pub height: Option<u32>,
+    /// A preset: preview, default, seed-figure8, or a profile file.
+    #[arg(
+        long,
+        value_name = "NAME",
+        default_value = "default",
+        help_heading = "Quality"
+    )]
+    pub profile: Option<String>,
+    /// Maximum path depth (the camera ray is depth 0).
+    #[arg(long, value_name = "D", help_heading = "Quality")]
+    pub max_depth: Option<u32>,
+    /// Random seed: the same seed gives the same image.
+    #[arg(long, value_name = "S", help_heading = "Quality")]
+    pub seed: Option<u64>,
+    /// Estimator [default: nee] (docs/integrators.md).
+    #[arg(long, value_parser = named(Integrator::NAMES, Integrator::from_name), help_heading = "Quality")]
+    pub integrator: Option<Integrator>,
+    /// Sample numbers [default: sobol].
+    #[arg(long, value_parser = named(SamplerKind::NAMES, SamplerKind::from_name), help_heading = "Quality")]
+    pub sampler: Option<SamplerKind>,
+    /// Russian roulette from this depth on [default: off].
+    #[arg(long, value_name = "D", help_heading = "Quality")]
+    pub rr_depth: Option<u32>,
+    /// A converged image (.exr, .pfm): print the result's error against it.
+    #[arg(long, value_name = "IMAGE", help_heading = "Quality")]
+    pub reference: Option<PathBuf>,
+
+    /// Stop after whole sample passes once the next would not fit in this time.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Time")]
     pub time_limit: Option<Duration>,
-    /// Save the accumulated samples to this file (a .wtacc partial file of
-    /// the samples done so far) every --checkpoint-every seconds, on SIGINT
-    /// or SIGTERM (then exit with status 130 or 143), and at the end.
-    /// Refused if the file exists, unless it is the --resume file.
-    #[arg(long, value_name = "FILE")]
+    /// Save progress to this .wtacc file periodically and on Ctrl-C/SIGTERM.
+    #[arg(long, value_name = "FILE", help_heading = "Time")]
     pub checkpoint: Option<PathBuf>,
     /// Seconds between checkpoints [default: 60].
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Time")]
     pub checkpoint_every: Option<Duration>,
-    /// Continue the render saved in this checkpoint file (made with the
-    /// same scene and settings, and the same --shard or --samples; --spp
-    /// may grow for a whole render, --threads may differ), and keep
-    /// checkpointing to it unless --checkpoint names another file.
-    #[arg(long, value_name = "FILE")]
+    /// Continue the render saved in this checkpoint (and keep saving to it).
+    #[arg(long, value_name = "FILE", help_heading = "Time")]
     pub resume: Option<PathBuf>,
-    /// Write the image so far to --out every this many seconds, so a
-    /// viewer can watch it converge (not to be confused with --partial,
-    /// the partial file of a shard).
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    /// Rewrite --out with the image so far every this many seconds.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Time")]
     pub write_partial: Option<Duration>,
-    /// Auxiliary outputs to accumulate beside the image, a comma list of:
-    /// albedo and normal (at the first non-specular hit, through mirrors
-    /// and glass), depth (the camera ray's mean hit distance; inf where
-    /// nothing was hit), variance (each pixel's sample variance of the
-    /// radiance, per channel). An .exr --out gets them as layers
-    /// (albedo.R/G/B, normal.X/Y/Z, depth.Z, variance.R/G/B); a .png or
-    /// .pfm --out as files beside it (STEM.albedo.pfm, ...); a .wtacc file
-    /// (checkpoints, --partial) holds their exact sums.
-    #[arg(long, value_name = "LIST", value_parser = parse_aovs)]
-    pub aov: Option<AovSet>,
-    /// Denoise the final image with Intel Open Image Denoise (OIDN 2.x,
-    /// loaded at run time: `pip install pyoidn`, or set OIDN_DIR), guided by
-    /// the albedo and normal AOVs (implies --aov albedo,normal); --out gets
-    /// the denoised image, with the AOVs.
-    #[arg(long)]
-    pub denoise: bool,
-    /// With --denoise: also write the raw (noisy) image to this file.
-    #[arg(long, value_name = "FILE", requires = "denoise")]
-    pub keep_noisy: Option<PathBuf>,
+
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
     pub farm: FarmArgs,
+
+    /// Worker threads [default: SLURM_CPUS_PER_TASK, else all cores].
+    #[arg(long, short = 't', value_name = "N", help_heading = "Tuning")]
+    pub threads: Option<usize>,
+    /// Path tracer: wavefront (fast) or reference (the scalar oracle).
+    #[arg(long, value_parser = named(Engine::NAMES, |n| Engine::from_name(n).ok()), help_heading = "Tuning")]
+    pub engine: Option<Engine>,
+    /// Lanes of the intersection kernels, 8 or 16 [default: the widest the CPU runs].
+    #[arg(long, value_name = "LANES", value_parser = parse_simd, help_heading = "Tuning")]
+    pub simd: Option<SimdWidth>,
+    /// Paths per wavefront batch [default: 4096]; never changes the image.
+    #[arg(long, value_name = "PATHS", help_heading = "Tuning")]
+    pub batch_size: Option<usize>,
 }
 
 /// A flag whose value is one of `names`, turned into a `T` by `from_name`
@@ -179,32 +169,24 @@ fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| format!("{text:?}: {e}"))
 }
 
-/// The farm options of `wavetrace render`: sample ranges, shards, partial files.
+/// The farm options of `wavetrace render`: sample ranges, shards, partial
+/// files (docs/farm.md).
 #[derive(Clone, Debug, Default, Args)]
 pub struct FarmArgs {
-    /// Render only sample indices A..B (A included, B not) of every pixel,
-    /// out of 0..spp.
-    #[arg(long, value_name = "A..B", value_parser = parse_samples, conflicts_with = "shard")]
+    /// Render only sample indices A..B of every pixel, out of 0..spp.
+    #[arg(long, value_name = "A..B", value_parser = parse_samples, conflicts_with = "shard", help_heading = "Farm")]
     pub samples: Option<Range<u32>>,
-    /// Render shard I of N (I from 0): the I-th of N near-equal sample
-    /// ranges of 0..spp. `auto` takes I and N from a Slurm job array
-    /// (SLURM_ARRAY_TASK_ID ...) or a Kubernetes Indexed Job
-    /// (JOB_COMPLETION_INDEX, with --shard-count).
-    #[arg(long, value_name = "I/N|auto", value_parser = ShardSpec::parse)]
+    /// Render shard I of N (from 0), or `auto` from Slurm or Kubernetes.
+    #[arg(long, value_name = "I/N|auto", value_parser = ShardSpec::parse, help_heading = "Farm")]
     pub shard: Option<ShardSpec>,
-    /// The number of shards, with --shard auto: then a Slurm task ID or a
-    /// JOB_COMPLETION_INDEX is the shard index itself.
-    #[arg(long, value_name = "N")]
+    /// With --shard auto: the number of shards.
+    #[arg(long, value_name = "N", help_heading = "Farm")]
     pub shard_count: Option<u32>,
-    /// Write the render's partial file (.wtacc: per-pixel sums, the sample
-    /// range held, a hash of the scene and settings) for `wavetrace merge`.
-    /// With --partial and no --out, no image is written.
-    #[arg(long, value_name = "FILE.wtacc")]
+    /// Write the partial file (.wtacc) for `wavetrace merge`.
+    #[arg(long, value_name = "FILE.wtacc", help_heading = "Farm")]
     pub partial: Option<PathBuf>,
-    /// Check the scene, the settings, the shard and the outputs, say what
-    /// would be rendered, and exit without rendering (e.g. before
-    /// submitting a farm job).
-    #[arg(long)]
+    /// Check the scene, settings and outputs, say what would be rendered, exit.
+    #[arg(long, help_heading = "Farm")]
     pub check: bool,
 }
 
@@ -250,6 +232,8 @@ struct Job {
     keep_noisy: Option<PathBuf>,
     /// The AOVs' files beside a PNG or PFM `--out`.
     aov_files: Vec<PathBuf>,
+    /// The exposure and view of a PNG `--out`.
+    view: ViewTransform,
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
@@ -341,6 +325,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         PathBuf::from(format!("{stem}.png"))
     });
     let out = args.out.or(default_out);
+    let view = args.view.transform(out.as_deref())?;
     // The AOVs' files beside a PNG or PFM --out.
     let mut aov_files = Vec::new();
     if let Some(out) = &out {
@@ -492,6 +477,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         session.partial_image = Some(path);
         session.partial_every = every;
     }
+    session.view = view;
     Ok(Job {
         scene,
         settings,
@@ -509,6 +495,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         denoiser,
         keep_noisy: args.keep_noisy,
         aov_files,
+        view,
     })
 }
 
@@ -682,7 +669,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         let is_out = is_final && !is_partial_file && job.out.as_ref() == Some(&path);
         let size = (film.width, film.height);
         let r = match &denoised {
-            Some(rgb) if is_out => write_image_with_aovs(&path, size, rgb, &aovs),
+            Some(rgb) if is_out => write_image_with_aovs(&path, size, rgb, &aovs, job.view),
             // --keep-noisy: the AOVs as layers of an EXR (a PNG or PFM gets
             // none: they are --out's, and their files would collide).
             Some(_) if is_final && !is_partial_file => {
@@ -693,9 +680,9 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
                 } else {
                     &[]
                 };
-                write_image_with_aovs(&path, size, &noisy_rgb, layers)
+                write_image_with_aovs(&path, size, &noisy_rgb, layers, job.view)
             }
-            _ => write_output(&path, film, &job.meta),
+            _ => write_output_viewed(&path, film, &job.meta, job.view),
         };
         let secs = t.elapsed().as_secs_f64();
         if is_final {

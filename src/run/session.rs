@@ -23,7 +23,8 @@
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
 use crate::integrator::Counters;
-use crate::output::write_output;
+use crate::output::view::ViewTransform;
+use crate::output::write_output_viewed;
 use crate::render::{RenderSettings, Renderer};
 use std::ops::Range;
 use std::path::PathBuf;
@@ -66,12 +67,14 @@ pub struct SessionOptions {
     pub checkpoint_every: Duration,
     /// Write the film so far to this file every
     /// [`partial_every`](Self::partial_every) (`None`: never): an image, or
-    /// an accumulation file for `.wtacc` (as [`write_output`] does).
+    /// an accumulation file for `.wtacc` (as [`write_output_viewed`] does).
     pub partial_image: Option<PathBuf>,
     /// The interval between partial images.
     pub partial_every: Duration,
     /// The length a pass should have.
     pub pass_target: Duration,
+    /// The exposure and view transform of a PNG partial image.
+    pub view: ViewTransform,
 }
 
 impl Default for SessionOptions {
@@ -84,6 +87,7 @@ impl Default for SessionOptions {
             partial_image: None,
             partial_every: Duration::from_secs(10),
             pass_target: DEFAULT_PASS_TARGET,
+            view: ViewTransform::default(),
         }
     }
 }
@@ -435,7 +439,7 @@ impl<'a> Session<'a> {
                 && now >= due
             {
                 let t = Instant::now();
-                match write_output(path, &film, &self.meta) {
+                match write_output_viewed(path, &film, &self.meta, o.view) {
                     Ok(()) => report.partial_images += 1,
                     Err(e) => observer
                         .warning(&format!("partial image not written (will try again): {e}")),
