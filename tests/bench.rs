@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{TempDir, run_ok, stdout};
+use common::{TempDir, run, run_ok, stdout};
 use wavetrace::run::bench::{EXPECTED_HASHES, SuiteSize, render_workload, workloads};
 
 /// Every workload at every size renders the image whose hash is shipped
@@ -110,4 +110,58 @@ fn bench_json_and_compare() {
     assert!(out.contains("a.json") && out.contains("b.json"), "{out}");
     assert!(out.contains("(1.00x)"), "ratios to the first file: {out}");
     assert!(out.contains("sphere-1m 1T Mpaths/s"), "{out}");
+    // Aligned: every cell right-aligned in its column, so every line of
+    // the table ends at the same column; and nothing cut short.
+    let lengths: Vec<usize> = out
+        .lines()
+        .filter(|l| !l.starts_with("warning"))
+        .map(|l| l.chars().count())
+        .collect();
+    assert!(lengths.windows(2).all(|w| w[0] == w[1]), "{out}");
+    let cpu = json["machine"]["cpu_model"].as_str().unwrap();
+    let features = json["build"]["target_features"].as_array().unwrap();
+    let features: Vec<&str> = features.iter().map(|f| f.as_str().unwrap()).collect();
+    assert!(out.contains(cpu), "{cpu} whole in {out}");
+    assert!(out.contains(&features.join(" ")), "{out}");
+    assert!(out.contains("other processes' CPU"), "{out}");
+}
+
+/// `bench` measures the CPU time other processes take during its runs
+/// and says BUSY beside a figure and a score taken on a busy machine.
+#[test]
+fn bench_says_busy_when_other_processes_use_the_cpu() {
+    let dir = TempDir::new("busy");
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    /// Busy loops, one a core, killed (each by its own handle) when
+    /// dropped, even if the test fails.
+    struct Spinners(Vec<std::process::Child>);
+    impl Drop for Spinners {
+        fn drop(&mut self) {
+            for s in &mut self.0 {
+                let _ = s.kill();
+                let _ = s.wait();
+            }
+        }
+    }
+    let spinners = Spinners(
+        (0..cores)
+            .map(|_| {
+                std::process::Command::new("sh")
+                    .args(["-c", "while :; do :; done"])
+                    .spawn()
+                    .unwrap()
+            })
+            .collect(),
+    );
+    let out = run(
+        dir.path(),
+        // Enough repeats of the tiny suite for the CPU time to be counted.
+        &["bench", "--tiny", "--repeats", "200", "--threads", "1"],
+    );
+    drop(spinners);
+    let text = stdout(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("BUSY"), "{text}");
+    let score = text.lines().find(|l| l.contains("single thread")).unwrap();
+    assert!(score.contains("BUSY"), "{score}");
 }

@@ -242,3 +242,18 @@ fn png_exposure_and_view_shape_pngs_only() {
     );
     assert_eq!(png("m.png"), png("v3.png"));
 }
+
+#[test]
+fn no_help_line_gives_two_defaults() {
+    let dir = TempDir::new("defaults");
+    for command in ["render", "merge", "bench", "converge", "denoise"] {
+        let o = run_ok(&dir, &[command, "--help"]);
+        let help = String::from_utf8_lossy(&o.stdout).into_owned();
+        for line in help.lines() {
+            assert!(
+                line.matches("[default:").count() <= 1,
+                "`{command} --help`: {line}"
+            );
+        }
+    }
+}

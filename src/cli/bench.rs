@@ -3,7 +3,9 @@
 
 use crate::error::{Error, Result};
 use crate::fs::{check_writable, write_atomic};
-use crate::run::bench::{BenchObserver, BenchReport, SuiteSize, default_thread_counts, run_suite};
+use crate::run::bench::{
+    BenchObserver, BenchReport, SuiteSize, ThreadResult, default_thread_counts, run_suite,
+};
 use clap::Args;
 use indicatif::{ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
@@ -109,6 +111,16 @@ pub fn run(args: BenchArgs) -> Result<ExitCode> {
     }
 }
 
+/// What other processes used of the CPU during a thread count's runs:
+/// `BUSY 23%` above the threshold, else the share, or `-` unknown.
+fn others(t: &ThreadResult) -> String {
+    match t.others_cpu {
+        Some(share) if t.busy() => format!("BUSY {:.0}%", share * 100.0),
+        Some(share) => format!("{:.0}%", share * 100.0),
+        None => "-".into(),
+    }
+}
+
 fn gib(bytes: u64) -> String {
     format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
 }
@@ -135,7 +147,7 @@ pub fn table(r: &BenchReport) -> String {
         b.target_features.join(" "),
     );
     s += &format!(
-        "{:<16} {:>7} {:>9} {:>7} {:>9} {:>9} {:>8} {:>10}\n",
+        "{:<16} {:>7} {:>9} {:>7} {:>9} {:>9} {:>8} {:>10}  {}\n",
         "workload",
         "threads",
         "median s",
@@ -143,12 +155,13 @@ pub fn table(r: &BenchReport) -> String {
         "Mpaths/s",
         "Mrays/s",
         "speed-up",
-        "efficiency"
+        "efficiency",
+        "others' CPU"
     );
     for w in &r.workloads {
         for (i, t) in w.runs.iter().enumerate() {
             s += &format!(
-                "{:<16} {:>7} {:>9.3} {:>6.1}% {:>9.3} {:>9.3} {:>8} {:>10}\n",
+                "{:<16} {:>7} {:>9.3} {:>6.1}% {:>9.3} {:>9.3} {:>8} {:>10}  {}\n",
                 if i == 0 { w.name.as_str() } else { "" },
                 t.threads,
                 t.median_seconds,
@@ -158,6 +171,7 @@ pub fn table(r: &BenchReport) -> String {
                 t.speedup.map_or("-".into(), |x| format!("{x:.2}x")),
                 t.efficiency
                     .map_or("-".into(), |x| format!("{:.0}%", x * 100.0)),
+                others(t),
             );
         }
     }
@@ -180,9 +194,29 @@ pub fn table(r: &BenchReport) -> String {
         }
     }
     let sc = &r.scores;
+    // BUSY beside a score when a run it is made of was timed while other
+    // processes used the CPU.
+    let busy = |one: bool| {
+        let any = r.workloads.iter().any(|w| {
+            let run = if one {
+                w.runs.iter().find(|t| t.threads == 1)
+            } else {
+                w.runs.last()
+            };
+            run.is_some_and(|t| t.busy())
+        });
+        if any {
+            "  BUSY: other processes used the CPU; not a clean score"
+        } else {
+            ""
+        }
+    };
     s += "\nscore (geometric mean over the workloads):\n";
     if let (Some(p), Some(q)) = (sc.single_thread_mpaths, sc.single_thread_mrays) {
-        s += &format!("  single thread   {p:>8.3} Mpaths/s  {q:>8.3} Mrays/s\n");
+        s += &format!(
+            "  single thread   {p:>8.3} Mpaths/s  {q:>8.3} Mrays/s{}\n",
+            busy(true)
+        );
     }
     s += &format!(
         "  {:<3} thread(s)   {:>8.3} Mpaths/s  {:>8.3} Mrays/s",
@@ -191,6 +225,7 @@ pub fn table(r: &BenchReport) -> String {
     if let Some(e) = sc.efficiency {
         s += &format!("  (scaling efficiency {:.0}%)", e * 100.0);
     }
+    s += busy(false);
     s += &format!(
         "\n{}  ({:.1} s in all)\n",
         if r.verified {
@@ -223,16 +258,10 @@ fn compare(files: &[PathBuf]) -> Result<()> {
 
 /// The side-by-side table of `reports` (read from `files`).
 pub fn compare_table(files: &[PathBuf], reports: &[BenchReport]) -> String {
-    let col = 28;
-    let mut s = String::new();
-    let mut row = |label: &str, cells: Vec<String>| {
-        s += &format!("{label:<26}");
-        for c in cells {
-            let c: String = c.chars().take(col - 1).collect();
-            s += &format!(" {c:>col$}");
-        }
-        s += "\n";
-    };
+    // Rows first; then each column as wide as its widest cell, nothing
+    // cut.
+    let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+    let mut row = |label: &str, cells: Vec<String>| rows.push((label.into(), cells));
     row("", files.iter().map(|f| f.display().to_string()).collect());
     row(
         "cpu",
@@ -356,6 +385,42 @@ pub fn compare_table(files: &[PathBuf], reports: &[BenchReport]) -> String {
             })
             .collect(),
     );
+    row(
+        "other processes' CPU",
+        reports
+            .iter()
+            .map(|r| {
+                let runs = r.workloads.iter().flat_map(|w| &w.runs);
+                let worst = runs
+                    .filter_map(|t| t.others_cpu)
+                    .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))));
+                match worst {
+                    Some(x) if x > crate::run::bench::BUSY_SHARE => {
+                        format!("BUSY (up to {:.0}%)", x * 100.0)
+                    }
+                    Some(x) => format!("up to {:.0}%", x * 100.0),
+                    None => "-".into(),
+                }
+            })
+            .collect(),
+    );
+    let width = |cell: &String| cell.chars().count();
+    let label_width = rows.iter().map(|(l, _)| width(l)).max().unwrap_or(0);
+    let mut widths = vec![0; reports.len()];
+    for (_, cells) in &rows {
+        for (w, c) in widths.iter_mut().zip(cells) {
+            *w = (*w).max(width(c));
+        }
+    }
+    let mut s = String::new();
+    for (label, cells) in &rows {
+        let mut line = format!("{label:<label_width$}");
+        for (c, w) in cells.iter().zip(&widths) {
+            line += &format!("  {c:>w$}");
+        }
+        s += line.trim_end();
+        s += "\n";
+    }
     let suites: std::collections::BTreeSet<_> = reports
         .iter()
         .map(|r| (r.suite_version, r.size.name()))

@@ -64,7 +64,7 @@ pub struct ConvergeArgs {
     /// than this (absolute, FLIP's 0-1 scale).
     #[arg(long, default_value_t = DEFAULT_JND)]
     pub jnd: f64,
-    /// Folder for the files written [default: the current folder].
+    /// Folder for the files written (`.`: the current folder).
     #[arg(long, value_name = "DIR", default_value = ".")]
     pub out_dir: PathBuf,
     /// Start of the written files' names.

@@ -383,6 +383,86 @@ pub struct ThreadResult {
     pub speedup: Option<f64>,
     /// Scaling efficiency: speed-up ÷ threads.
     pub efficiency: Option<f64>,
+    /// The share of the machine's CPU time that other processes used
+    /// during these repeats (from `/proc/stat`, less this process's own);
+    /// `None` where it cannot be read. Above [`BUSY_SHARE`] the timings
+    /// were taken on a busy machine.
+    #[serde(default)]
+    pub others_cpu: Option<f64>,
+}
+
+impl ThreadResult {
+    /// Whether other processes used more than [`BUSY_SHARE`] of the CPU
+    /// during these repeats.
+    pub fn busy(&self) -> bool {
+        self.others_cpu.is_some_and(|s| s > BUSY_SHARE)
+    }
+}
+
+/// The share of the machine's CPU time that other processes may use
+/// during a timed run before its figures are marked `BUSY`.
+pub const BUSY_SHARE: f64 = 0.05;
+
+/// The fewest clock ticks (of all CPUs together; usually 100 a second
+/// each) over which other processes' share is measured: the counts are
+/// whole ticks, so a shorter window says little.
+pub const MIN_TICKS: u64 = 20;
+
+/// CPU time, in clock ticks: the machine's busy and total time (all CPUs,
+/// from `/proc/stat`) and this process's (from `/proc/self/stat`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CpuTimes {
+    /// Ticks the CPUs were busy (all but idle and I/O wait).
+    pub busy: u64,
+    /// All ticks.
+    pub total: u64,
+    /// Ticks this process ran (user and system).
+    pub own: u64,
+}
+
+impl CpuTimes {
+    /// Now; `None` where `/proc` cannot be read (not Linux).
+    pub fn now() -> Option<Self> {
+        let machine = std::fs::read_to_string("/proc/stat").ok()?;
+        let own = std::fs::read_to_string("/proc/self/stat").ok()?;
+        Self::parse(&machine, &own)
+    }
+
+    /// From the texts of `/proc/stat` and `/proc/self/stat`.
+    pub fn parse(proc_stat: &str, self_stat: &str) -> Option<Self> {
+        let line = proc_stat.lines().find(|l| l.starts_with("cpu "))?;
+        let ticks: Vec<u64> = line
+            .split_whitespace()
+            .skip(1)
+            .map(|x| x.parse().ok())
+            .collect::<Option<_>>()?;
+        // user nice system idle iowait irq softirq steal (guest time is
+        // already in user and nice).
+        let total: u64 = ticks.iter().take(8).sum();
+        let idle = ticks.get(3)? + ticks.get(4).copied().unwrap_or(0);
+        // Fields after the command name (which may hold spaces and
+        // parentheses): state is field 3, utime 14, stime 15.
+        let fields: Vec<&str> = self_stat.rsplit_once(')')?.1.split_whitespace().collect();
+        let own = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+        Some(Self {
+            busy: total.checked_sub(idle)?,
+            total,
+            own,
+        })
+    }
+
+    /// The share of the machine's CPU time from `self` to `later` that
+    /// other processes used: its busy time less this process's, over all
+    /// of it; `None` for a window too short to tell (under [`MIN_TICKS`]).
+    pub fn others_share(&self, later: &Self) -> Option<f64> {
+        let total = later.total.saturating_sub(self.total);
+        if total < MIN_TICKS {
+            return None;
+        }
+        let busy = later.busy.saturating_sub(self.busy);
+        let own = later.own.saturating_sub(self.own);
+        Some(busy.saturating_sub(own) as f64 / total as f64)
+    }
 }
 
 /// A workload's results.
@@ -536,6 +616,7 @@ pub fn run_suite(
             let renderer = Renderer::new(&scene, &w.settings(&scene, t))?;
             let mut seconds = Vec::new();
             let mut counters = None;
+            let cpu_before = CpuTimes::now();
             for r in 0..repeats {
                 observer.progress(
                     done,
@@ -551,6 +632,9 @@ pub fn run_suite(
                 done += units(w, t);
                 observer.progress(done, w.name);
             }
+            let others_cpu = cpu_before
+                .zip(CpuTimes::now())
+                .and_then(|(a, b)| a.others_share(&b));
             let c = counters.expect("at least one repeat");
             let med = median(&seconds);
             let max = seconds.iter().copied().fold(f64::MIN, f64::max);
@@ -570,6 +654,7 @@ pub fn run_suite(
                 mrays_per_s: c.rays as f64 / med / 1e6,
                 speedup,
                 efficiency: speedup.map(|s| s / t as f64),
+                others_cpu,
             });
         }
         let verified = expected.is_some_and(|e| hashes.len() == 1 && hashes[0] == e);
@@ -642,6 +727,31 @@ mod tests {
         assert_eq!(default_thread_counts(2), vec![1, 2]);
         assert_eq!(default_thread_counts(6), vec![1, 2, 4, 6]);
         assert_eq!(default_thread_counts(8), vec![1, 2, 4, 8]);
+    }
+
+    #[test]
+    fn other_processes_cpu_time_is_read_from_proc() {
+        let stat = |user: u64, idle: u64| {
+            format!("cpu  {user} 0 100 {idle} 0 0 0 0 0 0\ncpu0 1 2 3 4 5 6 7 8 9 10\n")
+        };
+        // The command name may hold spaces and parentheses.
+        let me = |ticks: u64| {
+            format!("1234 (a (b) c) R 1 2 3 4 5 6 7 8 9 10 {ticks} 0 0 0 20 0 1 0 5 6 7")
+        };
+        let a = CpuTimes::parse(&stat(1000, 5000), &me(300)).unwrap();
+        assert_eq!((a.busy, a.total, a.own), (1100, 6100, 300));
+        // 1000 ticks later: 600 busy, 400 of them this process's.
+        let b = CpuTimes::parse(&stat(1600, 5400), &me(700)).unwrap();
+        assert!((a.others_share(&b).unwrap() - 0.2).abs() < 1e-12);
+        // Only this process busy: no one else.
+        let c = CpuTimes::parse(&stat(1600, 5400), &me(900)).unwrap();
+        assert_eq!(a.others_share(&c), Some(0.0));
+        // Too short a window to tell.
+        let d = CpuTimes::parse(&stat(1005, 5005), &me(300)).unwrap();
+        assert_eq!(a.others_share(&d), None);
+        assert!(CpuTimes::parse("intr 1 2", &me(1)).is_none());
+        #[cfg(target_os = "linux")]
+        assert!(CpuTimes::now().is_some());
     }
 
     #[test]
