@@ -22,6 +22,8 @@ pub trait Real:
 {
     /// The result of a lane-wise comparison.
     type Mask: Copy + BitAnd<Output = Self::Mask> + BitOr<Output = Self::Mask>;
+    /// An index per lane (of a primitive, of a material).
+    type Id: Copy + std::fmt::Debug;
     /// The same value in every lane.
     fn splat(x: f32) -> Self;
     /// `self · a + b` with a single rounding (fused multiply-add).
@@ -66,6 +68,7 @@ pub trait Real:
 
 impl Real for f32 {
     type Mask = bool;
+    type Id = u32;
     #[inline(always)]
     fn splat(x: f32) -> Self {
         x
@@ -112,6 +115,7 @@ impl Real for f32 {
 
 impl Real for f32x8 {
     type Mask = f32x8;
+    type Id = [u32; 8];
     #[inline(always)]
     fn splat(x: f32) -> Self {
         f32x8::splat(x)

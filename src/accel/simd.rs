@@ -336,6 +336,7 @@ mod x16 {
 
     impl Real for F32x16 {
         type Mask = Mask16;
+        type Id = [u32; 16];
         #[inline(always)]
         fn splat(x: f32) -> Self {
             // SAFETY: see the module's documentation.

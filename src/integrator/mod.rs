@@ -6,6 +6,8 @@
 //! - [`reference`](mod@reference): the scalar recursive reference tracer
 //!   (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (the default);
+//! - [`surface`]: the surface at a hit, computed once per hit for every
+//!   consumer, from the shapes' columns in [`tables`];
 //! - [`aov`]: the auxiliary outputs (albedo, normal, depth, variance):
 //!   what each one is, and where the engines record them.
 //!
@@ -21,6 +23,8 @@ pub mod lights;
 pub mod nee;
 pub mod reference;
 pub mod sampler;
+pub mod surface;
+pub mod tables;
 pub mod wavefront;
 
 use crate::film::{AovSample, AovTile, PixelSum, accumulate_with_aovs};

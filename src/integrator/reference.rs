@@ -24,13 +24,14 @@
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
 use crate::accel::bvh::Bvh;
-use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims, hit_normal};
-use crate::accel::triangle::{Hit, TriangleEdges, hit_point};
+use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims};
+use crate::accel::triangle::{Hit, TriangleEdges};
 use crate::film::{AovSample, accumulate};
-use crate::integrator::bsdf::{Surface, facing, shading_facing};
+use crate::integrator::bsdf::Surface;
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, connect_shaded, emission_weight, survival as survival_of};
 use crate::integrator::sampler::Sampler;
+use crate::integrator::tables::Tables;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
 use crate::scene::camera::RasterCamera;
@@ -49,7 +50,9 @@ enum Accel {
 
 /// The scalar recursive path tracer.
 pub struct ReferenceTracer {
-    scene: Scene,
+    materials: Vec<Material>,
+    /// The shapes' columns the surface at a hit is made from.
+    tables: Tables,
     accel: Accel,
     epsilon: f32,
     estimator: Estimator,
@@ -91,7 +94,8 @@ impl ReferenceTracer {
         Self {
             accel,
             epsilon: scene.ray_epsilon(),
-            scene: scene.clone(),
+            tables: Tables::new(scene),
+            materials: scene.materials.clone(),
             estimator: Estimator::report(max_depth),
             lights: Lights::new(scene),
         }
@@ -122,21 +126,6 @@ impl ReferenceTracer {
             Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, t_max),
             Accel::BruteForce(t, s) => {
                 closest_hit_brute_force_prims(t, s, o, d, self.epsilon, t_max)
-            }
-        }
-    }
-
-    /// The material and the front (outward) unit normal of the primitive
-    /// hit by the ray `o + t·d`: a triangle's own normal, or a sphere's
-    /// radius through the hit ([`hit_normal`]).
-    fn hit_surface(&self, hit: Hit, o: Vec3, d: Vec3) -> (u32, Vec3) {
-        let prim = hit.triangle as usize;
-        match self.scene.triangles.get(prim) {
-            Some(t) => (t.material, t.normal),
-            None => {
-                let s = &self.scene.spheres[prim - self.scene.triangles.len()];
-                let n = hit_normal(V3::from(o), V3::from(d), hit.t, V3::from(s.center));
-                (s.material, Vec3::from(n))
             }
         }
     }
@@ -209,11 +198,12 @@ impl ReferenceTracer {
         let Some(hit) = self.closest_hit(o, d) else {
             return Vec3::ZERO;
         };
-        let (material, front) = self.hit_surface(hit, o, d);
-        let material = &self.scene.materials[material as usize];
-
-        // Seen from the front, the surface emits; either side reflects.
-        let (seen_from_front, normal) = facing(V3::from(front), V3::from(d));
+        // The surface, once: seen from the front it emits; either side
+        // reflects.
+        let s = self
+            .tables
+            .surface(hit.triangle as usize, (V3::from(o), V3::from(d)), hit.t);
+        let material = &self.materials[s.material as usize];
         // AOVs: the camera ray's distance; the first non-specular vertex.
         if depth == 0
             && let Some(a) = aov.as_deref_mut()
@@ -223,13 +213,11 @@ impl ReferenceTracer {
         if !material.model.is_delta()
             && let Some(a) = aov.take()
         {
-            let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-            let shading = self.shading_normal(hit, p, front, (seen_from_front, normal), d);
             a.albedo = super::aov::albedo(material).to_array();
-            a.normal = [shading.x, shading.y, shading.z];
+            a.normal = [s.ns.x, s.ns.y, s.ns.z];
         }
-        let mut radiance = if seen_from_front {
-            let cos_light = -front.dot(d);
+        let mut radiance = if s.front {
+            let cos_light = -Vec3::from(s.ng).dot(d);
             let w = emission_weight(
                 est,
                 &self.lights,
@@ -246,8 +234,7 @@ impl ReferenceTracer {
             return radiance; // the next ray would exceed the maximum depth
         }
 
-        let p = Vec3::from(hit_point(V3::from(o), V3::from(d), hit.t));
-        let shading = self.shading_normal(hit, p, front, (seen_from_front, normal), d);
+        let p = Vec3::from(s.p);
         let surface = self.surface(material);
         let mut beta = beta;
         let mut survival = 1.0;
@@ -263,7 +250,7 @@ impl ReferenceTracer {
         } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);
             if let Some(light) = self.lights.sample(V3::from(p), u) {
-                let vertex = (V3::from(p), normal, shading, V3::from(-d));
+                let vertex = (s.p, s.n, s.ns, V3::from(-d));
                 let (valid, shadow) = connect_shaded(&light, self.epsilon, vertex, &surface);
                 if valid {
                     counters.rays += 1;
@@ -277,7 +264,8 @@ impl ReferenceTracer {
         }
         let (_lobe, u) = est.bsdf_numbers(sampler, path);
         let report = est.integrator == Integrator::Report;
-        let s = surface.sample_shaded((seen_from_front, normal, shading), V3::from(d), u, report);
+        let hit = (s.front, s.n, s.ns);
+        let s = surface.sample_shaded(hit, V3::from(d), u, report);
         // A delta direction has no density: light sampling could not have
         // found what it hits (MIS weight 1).
         let pdf = if s.delta { 0.0 } else { s.pdf };
@@ -292,26 +280,6 @@ impl ReferenceTracer {
             aov,
         );
         radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival
-    }
-
-    /// The shading normal to scatter with at the hit `hit` (at `p`, of
-    /// front normal `front`) of a ray of direction `d` that arrived on the
-    /// side `(seen_from_front, normal)` of [`facing`]: smooth triangles'
-    /// vertex normals interpolated at `p` (else `front`), turned towards
-    /// the ray ([`shading_facing`]); sides stay geometric.
-    fn shading_normal(
-        &self,
-        hit: Hit,
-        p: Vec3,
-        front: Vec3,
-        (seen_from_front, normal): (bool, V3<f32>),
-        d: Vec3,
-    ) -> V3<f32> {
-        let shading = self
-            .scene
-            .shading_normal(hit.triangle as usize, p)
-            .unwrap_or(front);
-        shading_facing(seen_from_front, normal, V3::from(shading), V3::from(-d))
     }
 
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the

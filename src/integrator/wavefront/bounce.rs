@@ -4,8 +4,6 @@
 
 use super::Ctx;
 use super::queue::{PathQueue, load8, store_lanes, store3};
-use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::{Integrator, Model};
@@ -59,16 +57,12 @@ pub fn scatter<S: Sampler>(
         let d = load3(&queue.d);
         let beta = load3(&queue.beta);
         let t = load8(&queue.t, i);
-        let normal = tables.front_normals(&tris, o, d, t);
-
-        let origin = hit_point(o, d, t);
+        let hit = tables.surface_8(&tris, (o, d), t);
+        let origin = hit.p;
         let s = if tables.has_smooth() {
-            let (front, ng) = facing(normal, d);
-            let shading = tables.shading_normals(&tris, normal, origin);
-            let ns = shading_facing(front, ng, shading, -d);
-            surface.sample_shaded((front, ng, ns), d, u, report)
+            surface.sample_shaded((hit.front, hit.n, hit.ns), d, u, report)
         } else {
-            surface.sample(normal, d, u, report)
+            surface.sample(hit.ng, d, u, report)
         };
         let beta = s.weigh(beta);
         let pdf = if model.is_delta() { f32x8::ZERO } else { s.pdf };
@@ -82,13 +76,14 @@ pub fn scatter<S: Sampler>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::tables::Tables;
     use super::*;
     use crate::accel::bvh::Bvh;
+    use crate::accel::triangle::hit_point;
     use crate::integrator::bsdf::Surface;
     use crate::integrator::lights::Lights;
     use crate::integrator::nee::Estimator;
     use crate::integrator::sampler::{Independent, PathRng};
+    use crate::integrator::tables::Tables;
     use crate::scene::Scene;
 
     /// A queue of `n` paths that hit Cornell box triangles, with varied

@@ -5,8 +5,6 @@
 use super::Ctx;
 use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
-use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::nee::{connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
@@ -64,19 +62,15 @@ fn sample_lights_8<S: Sampler>(
     let load3 =
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
-    let p = hit_point(o, d, t);
+    let s = tables.surface_8(&tris, (o, d), t);
     let (emitters, u0) = lights.pick_8(u0, lanes);
-    let light = lights.point_on(&emitters, p, [u0, u1]);
-    let front = tables.front_normals(&tris, o, d, t);
-    let (seen_from_front, n) = facing(front, d);
+    let light = lights.point_on(&emitters, s.p, [u0, u1]);
     let surface = tables.surfaces(model, &tris);
     let eps = f32x8::splat(tables.epsilon);
     let (valid, ray) = if tables.has_smooth() {
-        let shading = tables.shading_normals(&tris, front, p);
-        let ns = shading_facing(seen_from_front, n, shading, -d);
-        connect_shaded(&light, eps, (p, n, ns, -d), &surface)
+        connect_shaded(&light, eps, (s.p, s.n, s.ns, -d), &surface)
     } else {
-        connect(&light, eps, (p, n, -d), &surface)
+        connect(&light, eps, (s.p, s.n, -d), &surface)
     };
     // The live lanes that may carry light.
     let valid = valid.to_bitmask() as u8 & (u8::MAX >> (8 - lanes));

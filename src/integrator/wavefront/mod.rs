@@ -38,18 +38,17 @@ pub(crate) mod retire;
 pub(crate) mod shade;
 pub(crate) mod shadow;
 pub(crate) mod sort;
-pub(crate) mod tables;
 
 use crate::accel::bvh::Bvh;
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
+use crate::integrator::tables::Tables;
 use crate::integrator::{Counters, Stage, TileJob};
 use crate::scene::{AovSet, Scene};
 use queue::PathQueue;
 use std::ops::Range;
 use std::sync::Arc;
-use tables::Tables;
 
 /// Per-thread working memory: the path queue and the shadow rays.
 pub struct Scratch<P> {

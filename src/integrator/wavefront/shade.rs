@@ -2,11 +2,9 @@
 
 use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
-use super::tables::Tables;
-use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::{facing, shading_facing};
 use crate::integrator::nee::emission_weight;
 use crate::integrator::sampler::Sampler;
+use crate::integrator::tables::Tables;
 use crate::math::V3;
 
 /// For every path whose ray hit a surface from its front side:
@@ -25,13 +23,11 @@ pub fn shade<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
     // Most surfaces emit nothing: the rows that hit an emitter are found
     // eight at a time, without a branch per row.
     for i in rows_where(hit, |&h| tables.emits(h)) {
-        let tri = hit[i] as usize;
-        let e = tables.emission[tables.material_of[tri] as usize];
-        let d = V3::new(dx[i], dy[i], dz[i]);
-        let normal = tables.front_normal(tri, V3::new(ox[i], oy[i], oz[i]), d, t[i]);
-        if facing(normal, d).0 {
-            let cos_light = -glam::Vec3::from(normal).dot(glam::Vec3::from(d));
-            let o = V3::new(ox[i], oy[i], oz[i]);
+        let (o, d) = (V3::new(ox[i], oy[i], oz[i]), V3::new(dx[i], dy[i], dz[i]));
+        let s = tables.surface(hit[i] as usize, (o, d), t[i]);
+        let e = tables.emission[s.material as usize];
+        if s.front {
+            let cos_light = -glam::Vec3::from(s.ng).dot(glam::Vec3::from(d));
             let w = emission_weight(estimator, lights, (pdf[i], o), hit[i], t[i], cos_light);
             lr[i] += beta[0][i] * (e[0] * w);
             lg[i] += beta[1][i] * (e[1] * w);
@@ -64,16 +60,10 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32) {
             continue;
         }
         aov.pending[i] = 0;
-        let prim = hit as usize;
         let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
         let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
-        let t = queue.t[i];
-        let front = tables.front_normal(prim, o, d, t);
-        let (seen_from_front, ng) = facing(front, d);
-        let p = hit_point(o, d, t);
-        let shading = tables.shading_normal(prim, front, p).unwrap_or(front);
-        let ns = shading_facing(seen_from_front, ng, shading, -d);
-        let albedo = tables.albedo[tables.material_of[prim] as usize];
+        let s = tables.surface(hit as usize, (o, d), queue.t[i]);
+        let (albedo, ns) = (tables.albedo[s.material as usize], s.ns);
         for (col, a) in aov.albedo.iter_mut().zip(albedo) {
             col[i] = a;
         }

@@ -3,7 +3,7 @@
 //! runs of rows, eight at a time, with no branch per lane.
 
 use super::queue::PathQueue;
-use super::tables::Tables;
+use crate::integrator::tables::Tables;
 use crate::scene::Model;
 use std::ops::Range;
 

@@ -1,10 +1,13 @@
-//! The scene as the stages read it: per-primitive and per-material
-//! columns, gathered 8 lanes at a time. Primitives are numbered as hits
+//! The scene as the engines read it: per-primitive and per-material
+//! columns, gathered 1 or 8 lanes at a time, and the surface at a hit
+//! ([`SurfaceHit`]) made from them. Primitives are numbered as hits
 //! number them: the triangles, then the spheres.
 
 use crate::accel::simd::prefetch_lines;
 use crate::accel::sphere::hit_normal;
+use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
+use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
 use crate::scene::{Material, Model, Scene, interpolate_normal};
 use std::f32::consts::PI;
@@ -30,7 +33,8 @@ pub struct Tables {
     pub emission: Vec<[f32; 3]>,
     /// Per primitive, what a bounce reads of it, in one row of eight
     /// (front normal x, y, z — zero for spheres —, the diffuse BRDF
-    /// `reflectance / π` of its material, R, G, B, and two zeros): eight
+    /// `reflectance / π` of its material, R, G, B, the material's index
+    /// (its bits), and a zero): eight
     /// rows load as eight vectors and transpose into columns
     /// ([`Tables::rows_8`]), cheaper than 48 loads lane by lane. A row is
     /// aligned to half a cache line, so it lies in one.
@@ -105,7 +109,8 @@ impl Tables {
                         .get(p)
                         .map_or(glam::Vec3::ZERO, |t| t.normal);
                     let f = brdf(m);
-                    f32x8::new([n.x, n.y, n.z, f.x, f.y, f.z, 0.0, 0.0])
+                    let m = f32::from_bits(*m);
+                    f32x8::new([n.x, n.y, n.z, f.x, f.y, f.z, m, 0.0])
                 })
                 .collect(),
             big: materials.len() * size_of::<f32x8>() > BIG_TABLE,
@@ -138,6 +143,42 @@ impl Tables {
         self.emitting[k.min(self.emitting.len() - 1)]
     }
 
+    /// The surface where the ray `(o, d)` hits primitive `prim` at
+    /// distance `t`: a triangle's normal (and, if smooth, its interpolated
+    /// vertex normals), or a sphere's radius through the hit.
+    #[inline(always)]
+    pub fn surface(&self, prim: usize, (o, d): (V3<f32>, V3<f32>), t: f32) -> SurfaceHit<f32> {
+        let ng = self.front_normal(prim, o, d, t);
+        let shading = self.has_smooth().then(|| {
+            let p = hit_point(o, d, t);
+            self.shading_normal(prim, ng, p).unwrap_or(ng)
+        });
+        let ids = (prim as u32, self.material_of[prim]);
+        SurfaceHit::new((o, d), t, ids, ng, shading)
+    }
+
+    /// [`surface`](Self::surface) of eight lanes (`prims` may repeat a
+    /// live lane's primitive in lanes past the live rows).
+    #[inline(always)]
+    pub fn surface_8(
+        &self,
+        prims: &[usize; 8],
+        (o, d): (Vec3x8, Vec3x8),
+        t: f32x8,
+    ) -> SurfaceHit<f32x8> {
+        let [nx, ny, nz, _, _, _, material, _] = self.rows_8(prims);
+        let ng = self.sphere_normals(prims, V3::new(nx, ny, nz), (o, d), t);
+        let shading = self.has_smooth().then(|| {
+            let p = hit_point(o, d, t);
+            self.shading_normals(prims, ng, p)
+        });
+        let ids = (
+            prims.map(|p| p as u32),
+            material.to_array().map(f32::to_bits),
+        );
+        SurfaceHit::new((o, d), t, ids, ng, shading)
+    }
+
     /// The front (outward) unit normal of primitive `prim` where the ray
     /// `o + t·d` hits it: a triangle's own normal, or a sphere's radius
     /// through the hit ([`hit_normal`], as the reference tracer has it).
@@ -153,12 +194,16 @@ impl Tables {
         }
     }
 
-    /// [`front_normal`](Self::front_normal) of eight lanes (`prims` may
-    /// repeat a live lane's primitive in lanes past the live rows).
+    /// The triangles' front normals `n` of eight lanes, with the lanes
+    /// that hit spheres replaced by theirs ([`front_normal`](Self::front_normal)).
     #[inline(always)]
-    pub fn front_normals(&self, prims: &[usize; 8], o: Vec3x8, d: Vec3x8, t: f32x8) -> Vec3x8 {
-        let [nx, ny, nz, ..] = self.rows_8(prims);
-        let n = V3::new(nx, ny, nz);
+    fn sphere_normals(
+        &self,
+        prims: &[usize; 8],
+        n: Vec3x8,
+        (o, d): (Vec3x8, Vec3x8),
+        t: f32x8,
+    ) -> Vec3x8 {
         if self.sphere_center.is_empty() {
             return n;
         }
@@ -314,6 +359,67 @@ fn gather(idx: &[usize; 8], value: impl Fn(usize) -> f32) -> f32x8 {
 mod tests {
     use super::*;
     use crate::accel::triangle::NO_PRIM;
+    use crate::integrator::sampler::PathRng;
+
+    /// Eight lanes' surfaces are each lane's own, bit for bit, in a scene
+    /// of flat and smooth triangles and spheres, wherever the rays come
+    /// from; and a flat scene's shading normal is its facing normal.
+    #[test]
+    fn eight_lanes_make_each_lanes_surface() {
+        let mut scene = Scene::cornell();
+        let material = scene.triangles[0].material;
+        let center = glam::Vec3::new(0.2, 0.1, 0.3);
+        scene.spheres.push(crate::scene::Sphere {
+            center,
+            radius: 0.3,
+            material,
+        });
+        let flat = Tables::new(&scene);
+        let mut rng = PathRng::new(1, 2, 3);
+        let mut u = || rng.next_f32() - 0.5;
+        // Every other triangle smooth, with tilted vertex normals.
+        scene.vertex_normals = (scene.triangles.iter().enumerate())
+            .map(|(i, t)| match i % 2 {
+                0 => [glam::Vec3::ZERO; 3],
+                _ => [0.3, -0.2, 0.1].map(|k| (t.normal + glam::Vec3::splat(k)).normalize()),
+            })
+            .collect();
+        let smooth = Tables::new(&scene);
+        let prims = scene.triangles.len() + 1;
+        for tables in [&flat, &smooth] {
+            for round in 0..200 {
+                let ps: [usize; 8] = std::array::from_fn(|l| (round * 8 + l * 5) % prims);
+                let v = |u: &mut dyn FnMut() -> f32| V3::new(u(), u(), u());
+                type Ray = (V3<f32>, V3<f32>, f32);
+                let rays: [Ray; 8] = std::array::from_fn(|_| (v(&mut u), v(&mut u), u() + 0.5));
+                let col = |f: fn(&Ray) -> f32| f32x8::from(rays.map(|r| f(&r)));
+                let o = V3::new(col(|r| r.0.x), col(|r| r.0.y), col(|r| r.0.z));
+                let d = V3::new(col(|r| r.1.x), col(|r| r.1.y), col(|r| r.1.z));
+                let all = tables.surface_8(&ps, (o, d), col(|r| r.2));
+                let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+                let lane = |v: Vec3x8, l: usize| bits(lanes3(v)[l]);
+                for (l, &(o, d, t)) in rays.iter().enumerate() {
+                    let one = tables.surface(ps[l], (o, d), t);
+                    let front = all.front.to_array()[l] != 0.0;
+                    assert_eq!(
+                        (one.front, one.prim, one.material),
+                        (front, all.prim[l], all.material[l])
+                    );
+                    for (a, b) in [
+                        (one.p, all.p),
+                        (one.ng, all.ng),
+                        (one.n, all.n),
+                        (one.ns, all.ns),
+                    ] {
+                        assert_eq!(bits(a), lane(b, l), "lane {l} of primitive {}", ps[l]);
+                    }
+                    if !tables.has_smooth() || ps[l].is_multiple_of(2) {
+                        assert_eq!(bits(one.ns), bits(one.n));
+                    }
+                }
+            }
+        }
+    }
 
     /// `emits` agrees with the materials for every primitive, and is false
     /// for misses and past the last primitive, wherever the emitters sit
