@@ -25,6 +25,7 @@ pub mod reference;
 pub mod sampler;
 pub mod surface;
 pub mod tables;
+pub mod texture;
 pub mod wavefront;
 
 use crate::film::{AovSample, AovTile, PixelSum, accumulate_with_aovs};
