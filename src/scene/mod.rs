@@ -3,14 +3,17 @@
 //! Scenes are read from TOML files ([`file`](mod@file)); the DH2323 Cornell box is
 //! built in ([`Scene::cornell`]) and is the default scene.
 
+pub mod asset;
 pub mod camera;
 pub mod file;
 pub mod format;
+pub mod gltf;
 pub mod light_check;
 pub mod material;
 pub mod mesh;
 pub mod obj;
 pub mod options;
+pub mod ply;
 pub mod texture;
 
 use camera::Camera;

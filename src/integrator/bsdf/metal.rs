@@ -50,7 +50,7 @@ pub fn clamp_alpha<R: Real>(alpha: R) -> R {
 /// `S(c) = sqrt(c² + α² (1 - c²))` for a cosine `c` (`a2 = α²`): the
 /// Smith `Λ(c) = (S(c)/c - 1) / 2` without the division.
 #[inline(always)]
-fn smith_s<R: Real>(c: R, a2: R) -> R {
+pub fn smith_s<R: Real>(c: R, a2: R) -> R {
     let s2 = (-c).mul_add(c, R::splat(1.0)).max(R::splat(0.0));
     a2.mul_add(s2, c * c).sqrt()
 }

@@ -25,6 +25,7 @@
 pub mod diffuse;
 pub mod glass;
 pub mod metal;
+pub mod metallic_roughness;
 pub mod mirror;
 pub mod surface;
 

@@ -1,0 +1,919 @@
+//! glTF 2.0 (`.gltf` with its buffers and images, or `.glb`) to an
+//! [`Asset`].
+//!
+//! The `gltf` crate parses and validates the JSON (every index in range,
+//! every required property there); this module reads the binary data
+//! itself, and checks every accessor's offset, stride and size against its
+//! buffer view and buffer, with checked arithmetic, before it allocates
+//! anything, so that no file can make it panic or allocate what the file
+//! does not hold.
+//!
+//! What it reads, ignores and refuses:
+//!
+//! - the default scene (or the first; or every root node where the file
+//!   has no scene), its node hierarchy with TRS or matrix transforms;
+//!   nodes with two parents and cycles are refused;
+//! - mesh primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN
+//!   (points and lines are skipped, with one warning); indices of `u8`,
+//!   `u16` or `u32`; sparse accessors; `POSITION` (finite), `NORMAL`,
+//!   `TEXCOORD_0`/`_1`, `TANGENT` (generated with MikkTSpace where a
+//!   normal texture needs them and the file has none), `COLOR_0`; float
+//!   and normalised integer components;
+//! - metallic-roughness materials with their textures and
+//!   `KHR_texture_transform`, `KHR_materials_emissive_strength`,
+//!   `KHR_materials_ior`, `KHR_materials_specular`,
+//!   `KHR_materials_transmission`, `KHR_materials_volume` (see
+//!   [`PbrMaterial`]); occlusion textures are ignored (a path tracer
+//!   computes occlusion);
+//! - perspective cameras (orthographic ones are skipped with a warning);
+//! - images in PNG or JPEG, in a buffer view, a data URI or a file beside
+//!   the asset;
+//! - `KHR_draco_mesh_compression` and `EXT_meshopt_compression` are
+//!   refused where required, with the command that decompresses the file;
+//!   any other required extension is refused by name, any other used one
+//!   ignored with a warning.
+
+use super::asset::{AlphaMode, Asset, AssetCamera, AssetError, AssetMesh, Instance, PbrMaterial};
+use super::texture::{ColourSpace, Filter, Sampler, Texture, TextureRef, UvTransform, Wrap};
+use base64::Engine;
+use glam::{Mat4, Vec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// The extensions read (the others are ignored, or refused where
+/// required).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_texture_transform",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
+];
+
+/// The most elements an accessor without a buffer view (all zeros, then
+/// sparse values) may declare.
+pub const MAX_ZERO_ELEMENTS: usize = 1 << 26;
+
+/// The most triangles one asset may have.
+pub const MAX_TRIANGLES: usize = 1 << 28;
+
+/// Reads the glTF or GLB file at `path`.
+pub fn load(path: &Path) -> Result<Asset, AssetError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path)
+        .map_err(|e| AssetError::new(&file, "", format!("cannot read the file: {e}")))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    read(&bytes, &file, Some(dir))
+}
+
+/// Reads a glTF or GLB file's bytes; `file` names it in errors, and `dir`
+/// is where its external buffers and images are (`None`: refuse them).
+pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, AssetError> {
+    let invalid = |e: &dyn std::fmt::Display| {
+        AssetError::new(file, "", format!("not a valid glTF 2.0 file: {e}"))
+    };
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
+    // Checked before validation, which would index out of range (a
+    // panic) on a POSITION accessor that is not there.
+    let json = document.as_json();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= json.accessors.len() {
+                    return Err(AssetError::new(
+                        file,
+                        format!("meshes[{m}].primitives[{p}].attributes.{semantic:?}"),
+                        format!("accessor {} of {}", index.value(), json.accessors.len()),
+                    ));
+                }
+            }
+        }
+    }
+    // A file that requires an extension wavetrace does not read is refused
+    // for that, not for what validation then misses (a Draco mesh's
+    // accessors have no buffer views).
+    check_required_extensions(&document, file)?;
+    let document = gltf::Document::from_json(document.into_json()).map_err(|e| invalid(&e))?;
+    let gltf = gltf::Gltf { document, blob };
+    let mut r = Reader {
+        file,
+        dir,
+        doc: &gltf.document,
+        buffers: Vec::new(),
+        asset: Asset::default(),
+        textures: HashMap::new(),
+    };
+    r.warn_unread_extensions();
+    r.buffers = r.load_buffers(gltf.blob.as_deref())?;
+    r.read_materials()?;
+    r.read_scene()?;
+    Ok(r.asset)
+}
+
+/// Refuses a file that requires an extension wavetrace does not read:
+/// compressed meshes with the command that decompresses them, others by
+/// name.
+fn check_required_extensions(doc: &gltf::Document, file: &str) -> Result<(), AssetError> {
+    for ext in doc.extensions_required() {
+        match ext {
+            "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+                return Err(AssetError::new(
+                    file,
+                    "extensionsRequired",
+                    format!(
+                        "the meshes are compressed with {ext}, which wavetrace does not \
+                         decode; decompress the file first, e.g. with \
+                         `npx @gltf-transform/cli copy in.glb out.glb` \
+                         (or `gltfpack -i in.glb -o out.glb -noq`)"
+                    ),
+                ));
+            }
+            e if SUPPORTED_EXTENSIONS.contains(&e) => {}
+            e => {
+                return Err(AssetError::new(
+                    file,
+                    "extensionsRequired",
+                    format!("the file requires the extension {e}, which wavetrace does not read"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+struct Reader<'a> {
+    file: &'a str,
+    dir: Option<&'a Path>,
+    doc: &'a gltf::Document,
+    buffers: Vec<Vec<u8>>,
+    asset: Asset,
+    /// Decoded textures by (image, colour space).
+    textures: HashMap<(usize, bool), u32>,
+}
+
+impl Reader<'_> {
+    fn err(&self, at: impl Into<String>, message: impl Into<String>) -> AssetError {
+        AssetError::new(self.file, at, message)
+    }
+
+    fn warn_unread_extensions(&mut self) {
+        for ext in self.doc.extensions_used() {
+            if !SUPPORTED_EXTENSIONS.contains(&ext) {
+                self.asset
+                    .warnings
+                    .push(format!("{}: extension {ext} ignored", self.file));
+            }
+        }
+    }
+
+    /// Bytes from a URI: a base64 data URI, or a file beside the asset.
+    fn uri_bytes(&self, uri: &str, at: &str) -> Result<Vec<u8>, AssetError> {
+        if let Some(rest) = uri.strip_prefix("data:") {
+            let (_, data) = rest
+                .split_once(";base64,")
+                .ok_or_else(|| self.err(at, "a data URI that is not base64"))?;
+            return base64::engine::general_purpose::STANDARD
+                .decode(data)
+                .map_err(|e| self.err(at, format!("bad base64 data: {e}")));
+        }
+        if uri.contains("://") {
+            return Err(self.err(at, format!("a URI wavetrace cannot read: {uri}")));
+        }
+        let dir = self.dir.ok_or_else(|| {
+            self.err(
+                at,
+                format!("an external file ({uri}) where none can be read"),
+            )
+        })?;
+        let name = percent_decode(uri);
+        let path = dir.join(&name);
+        std::fs::read(&path)
+            .map_err(|e| self.err(at, format!("cannot read {}: {e}", path.display())))
+    }
+
+    fn load_buffers(&self, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, AssetError> {
+        let mut out = Vec::new();
+        for b in self.doc.buffers() {
+            let at = format!("buffers[{}]", b.index());
+            let data = match b.source() {
+                gltf::buffer::Source::Bin => blob
+                    .ok_or_else(|| {
+                        self.err(&at, "refers to a GLB binary chunk the file does not have")
+                    })?
+                    .to_vec(),
+                gltf::buffer::Source::Uri(uri) => self.uri_bytes(uri, &format!("{at}.uri"))?,
+            };
+            if data.len() < b.length() {
+                return Err(self.err(
+                    format!("{at}.byteLength"),
+                    format!("{} bytes declared, {} present", b.length(), data.len()),
+                ));
+            }
+            out.push(data);
+        }
+        Ok(out)
+    }
+
+    /// The bytes of buffer view `view`, checked against its buffer.
+    fn view_bytes(&self, view: &gltf::buffer::View, at: &str) -> Result<&[u8], AssetError> {
+        let buffer = &self.buffers[view.buffer().index()];
+        let end = view
+            .offset()
+            .checked_add(view.length())
+            .filter(|&e| e <= buffer.len())
+            .ok_or_else(|| {
+                self.err(
+                    format!("bufferViews[{}]", view.index()),
+                    format!(
+                        "bytes {} + {} lie outside its buffer of {} bytes (read for {at})",
+                        view.offset(),
+                        view.length(),
+                        buffer.len()
+                    ),
+                )
+            })?;
+        Ok(&buffer[view.offset()..end])
+    }
+
+    /// `count` elements of `size` bytes each, `stride` apart, from
+    /// `offset` in `view`: the bytes of each element, all checked.
+    fn elements<'s>(
+        &'s self,
+        view: &gltf::buffer::View,
+        offset: usize,
+        count: usize,
+        size: usize,
+        at: &str,
+    ) -> Result<Vec<&'s [u8]>, AssetError> {
+        let bytes = self.view_bytes(view, at)?;
+        let stride = view.stride().unwrap_or(size);
+        if stride < size {
+            return Err(self.err(
+                at,
+                format!("a byte stride of {stride} for elements of {size} bytes"),
+            ));
+        }
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let end = (count - 1)
+            .checked_mul(stride)
+            .and_then(|x| x.checked_add(offset))
+            .and_then(|x| x.checked_add(size))
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| {
+                self.err(
+                    at,
+                    format!(
+                        "{count} elements of {size} bytes, {stride} apart from byte {offset}, \
+                         do not fit its buffer view of {} bytes",
+                        bytes.len()
+                    ),
+                )
+            })?;
+        let bytes = &bytes[..end];
+        Ok((0..count)
+            .map(|k| &bytes[offset + k * stride..offset + k * stride + size])
+            .collect())
+    }
+
+    /// An accessor's elements as `f32` components (`n` of them each;
+    /// normalised integers are mapped to `[0, 1]` or `[-1, 1]`).
+    fn read_floats<const N: usize>(
+        &self,
+        acc: &gltf::Accessor,
+        at: &str,
+        allowed: &[Dimensions],
+    ) -> Result<Vec<[f32; N]>, AssetError> {
+        let dims = acc.dimensions();
+        if !allowed.contains(&dims) {
+            return Err(self.err(
+                at,
+                format!("an accessor of type {dims:?}, expected one of {allowed:?}"),
+            ));
+        }
+        let m = dims.multiplicity();
+        let ty = acc.data_type();
+        if !acc.normalized() && ty != DataType::F32 && !matches!(dims, Dimensions::Scalar) {
+            // Non-normalised integers are allowed only for texture
+            // coordinates in KHR_mesh_quantization, which is not read.
+            return Err(self.err(
+                at,
+                format!("components of type {ty:?} that are not normalised"),
+            ));
+        }
+        let cs = ty.size();
+        let decode = |b: &[u8]| -> f32 {
+            match ty {
+                DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                DataType::U8 => b[0] as f32 / 255.0,
+                DataType::I8 => (b[0] as i8 as f32 / 127.0).max(-1.0),
+                DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65_535.0,
+                DataType::I16 => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32_767.0).max(-1.0),
+                DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            }
+        };
+        let one = |e: &[u8]| -> [f32; N] {
+            std::array::from_fn(|c| if c < m { decode(&e[c * cs..]) } else { 1.0 })
+        };
+        self.read_elements(acc, at, cs * m, [0.0; N], one)
+    }
+
+    /// An accessor's elements, each decoded by `one` from its bytes, with
+    /// its sparse substitution.
+    fn read_elements<T: Copy>(
+        &self,
+        acc: &gltf::Accessor,
+        at: &str,
+        size: usize,
+        zero: T,
+        one: impl Fn(&[u8]) -> T,
+    ) -> Result<Vec<T>, AssetError> {
+        let count = acc.count();
+        let mut out = match acc.view() {
+            Some(view) => self
+                .elements(&view, acc.offset(), count, size, at)?
+                .into_iter()
+                .map(&one)
+                .collect(),
+            None => {
+                if count > MAX_ZERO_ELEMENTS {
+                    return Err(self.err(at, format!("{count} elements declared without data")));
+                }
+                vec![zero; count]
+            }
+        };
+        if let Some(sparse) = acc.sparse() {
+            let n = sparse.count();
+            let idx = sparse.indices();
+            let isz = idx.index_type().size();
+            let indices = self.elements(
+                &idx.view(),
+                idx.offset(),
+                n,
+                isz,
+                &format!("{at}.sparse.indices"),
+            )?;
+            let values = self.elements(
+                &sparse.values().view(),
+                sparse.values().offset(),
+                n,
+                size,
+                &format!("{at}.sparse.values"),
+            )?;
+            for (i, v) in indices.into_iter().zip(values) {
+                let k = match isz {
+                    1 => i[0] as usize,
+                    2 => u16::from_le_bytes([i[0], i[1]]) as usize,
+                    _ => u32::from_le_bytes([i[0], i[1], i[2], i[3]]) as usize,
+                };
+                let slot = out.get_mut(k).ok_or_else(|| {
+                    self.err(
+                        format!("{at}.sparse.indices"),
+                        format!("index {k} of {count} elements"),
+                    )
+                })?;
+                *slot = one(v);
+            }
+        }
+        Ok(out)
+    }
+
+    fn read_indices(&self, acc: &gltf::Accessor, at: &str) -> Result<Vec<u32>, AssetError> {
+        if acc.dimensions() != Dimensions::Scalar {
+            return Err(self.err(at, "indices that are not scalars"));
+        }
+        let ty = acc.data_type();
+        let one = move |b: &[u8]| -> u32 {
+            match ty {
+                DataType::U8 => b[0] as u32,
+                DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as u32,
+                _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            }
+        };
+        match ty {
+            DataType::U8 | DataType::U16 | DataType::U32 => {
+                self.read_elements(acc, at, ty.size(), 0, one)
+            }
+            t => Err(self.err(
+                at,
+                format!("indices of type {t:?} (u8, u16 or u32 expected)"),
+            )),
+        }
+    }
+
+    fn texture(
+        &mut self,
+        texture: gltf::Texture,
+        tex_coord: u32,
+        transform: Option<gltf::texture::TextureTransform>,
+        space: ColourSpace,
+        scale: f32,
+        at: &str,
+    ) -> Result<Option<TextureRef>, AssetError> {
+        let image = texture.source();
+        let key = (image.index(), space == ColourSpace::Srgb);
+        let index = match self.textures.get(&key) {
+            Some(&i) => i,
+            None => {
+                let iat = format!("images[{}]", image.index());
+                let bytes = match image.source() {
+                    gltf::image::Source::View { view, .. } => {
+                        self.view_bytes(&view, &iat)?.to_vec()
+                    }
+                    gltf::image::Source::Uri { uri, .. } => {
+                        self.uri_bytes(uri, &format!("{iat}.uri"))?
+                    }
+                };
+                let t =
+                    Texture::decode(&bytes, space).map_err(|e| self.err(&iat, e.to_string()))?;
+                self.asset.textures.push(t);
+                let i = (self.asset.textures.len() - 1) as u32;
+                self.textures.insert(key, i);
+                i
+            }
+        };
+        let s = texture.sampler();
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let filter = match s.mag_filter() {
+            Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
+            _ => Filter::Linear,
+        };
+        let (tex_coord, transform) = match transform {
+            Some(t) => (
+                t.tex_coord().unwrap_or(tex_coord),
+                UvTransform::new(t.offset(), t.rotation(), t.scale()),
+            ),
+            None => (tex_coord, UvTransform::IDENTITY),
+        };
+        if tex_coord > 1 {
+            self.asset.warnings.push(format!(
+                "{}: {at}: TEXCOORD_{tex_coord} is not read; the texture is ignored",
+                self.file
+            ));
+            return Ok(None);
+        }
+        Ok(Some(TextureRef {
+            texture: index,
+            tex_coord,
+            sampler: Sampler {
+                wrap_u: wrap(s.wrap_s()),
+                wrap_v: wrap(s.wrap_t()),
+                filter,
+            },
+            transform,
+            scale,
+        }))
+    }
+
+    fn info(
+        &mut self,
+        info: Option<gltf::texture::Info>,
+        space: ColourSpace,
+        at: &str,
+    ) -> Result<Option<TextureRef>, AssetError> {
+        match info {
+            Some(i) => self.texture(
+                i.texture(),
+                i.tex_coord(),
+                i.texture_transform(),
+                space,
+                1.0,
+                at,
+            ),
+            None => Ok(None),
+        }
+    }
+
+    fn read_materials(&mut self) -> Result<(), AssetError> {
+        let finite = |x: f32| x.is_finite();
+        for m in self.doc.materials() {
+            let i = m.index().unwrap_or(0);
+            let at = format!("materials[{i}]");
+            let pbr = m.pbr_metallic_roughness();
+            let base_colour_texture = self.info(
+                pbr.base_color_texture(),
+                ColourSpace::Srgb,
+                &format!("{at}.baseColorTexture"),
+            )?;
+            let metallic_roughness_texture = self.info(
+                pbr.metallic_roughness_texture(),
+                ColourSpace::Linear,
+                &format!("{at}.metallicRoughnessTexture"),
+            )?;
+            let emissive_texture = self.info(
+                m.emissive_texture(),
+                ColourSpace::Srgb,
+                &format!("{at}.emissiveTexture"),
+            )?;
+            let normal_texture = match m.normal_texture() {
+                Some(n) => {
+                    let transform = n.extension_value("KHR_texture_transform").and_then(|v| {
+                        serde_json::from_value::<gltf::json::extensions::texture::TextureTransform>(
+                            v.clone(),
+                        )
+                        .ok()
+                    });
+                    let tt = transform.map(|t| (t.offset.0, t.rotation.0, t.scale.0, t.tex_coord));
+                    let tex_coord = tt.and_then(|t| t.3).unwrap_or(n.tex_coord());
+                    let r = self.texture(
+                        n.texture(),
+                        tex_coord,
+                        None,
+                        ColourSpace::Linear,
+                        n.scale(),
+                        &format!("{at}.normalTexture"),
+                    )?;
+                    r.map(|mut r| {
+                        if let Some((o, rot, s, _)) = tt {
+                            r.transform = UvTransform::new(o, rot, s);
+                        }
+                        r
+                    })
+                }
+                None => None,
+            };
+            let strength = m.emissive_strength().unwrap_or(1.0);
+            let e = m.emissive_factor();
+            let alpha_mode = match m.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+                gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            };
+            let material = PbrMaterial {
+                name: m
+                    .name()
+                    .map_or_else(|| format!("material {i}"), str::to_string),
+                base_colour: pbr.base_color_factor(),
+                base_colour_texture,
+                metallic: pbr.metallic_factor(),
+                roughness: pbr.roughness_factor(),
+                metallic_roughness_texture,
+                normal_texture,
+                emissive: e.map(|c| c * strength),
+                emissive_texture,
+                alpha_mode,
+                double_sided: m.double_sided(),
+                ior: m.ior().unwrap_or(1.5),
+                specular: m.specular().map_or(1.0, |s| s.specular_factor()),
+                specular_colour: m.specular().map_or([1.0; 3], |s| s.specular_color_factor()),
+                transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+                thickness: m.volume().map_or(0.0, |v| v.thickness_factor()),
+            };
+            let scalars = [
+                material.metallic,
+                material.roughness,
+                material.ior,
+                material.specular,
+                material.transmission,
+                material.thickness,
+            ];
+            let numbers = material
+                .base_colour
+                .iter()
+                .chain(&material.emissive)
+                .chain(&material.specular_colour)
+                .chain(&scalars);
+            if !numbers.copied().all(finite) {
+                return Err(self.err(&at, "a factor that is not a finite number"));
+            }
+            self.asset.materials.push(material);
+        }
+        Ok(())
+    }
+
+    fn read_scene(&mut self) -> Result<(), AssetError> {
+        let doc = self.doc;
+        // Each node has at most one parent: the nodes form trees.
+        let mut parent = vec![None; doc.nodes().len()];
+        for n in doc.nodes() {
+            for c in n.children() {
+                if let Some(p) = parent[c.index()] {
+                    return Err(self.err(
+                        format!("nodes[{}].children", n.index()),
+                        format!(
+                            "node {} is already a child of node {p}: nodes must form trees",
+                            c.index()
+                        ),
+                    ));
+                }
+                parent[c.index()] = Some(n.index());
+            }
+        }
+        let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+            Some(s) => s.nodes().collect(),
+            None => doc
+                .nodes()
+                .filter(|n| parent[n.index()].is_none())
+                .collect(),
+        };
+        let mut mesh_of: HashMap<(usize, usize), Option<u32>> = HashMap::new();
+        let mut visited = vec![false; doc.nodes().len()];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        let mut skipped_modes = 0usize;
+        let mut triangles = 0usize;
+        while let Some((node, parent_world)) = stack.pop() {
+            let at = format!("nodes[{}]", node.index());
+            if std::mem::replace(&mut visited[node.index()], true) {
+                return Err(self.err(
+                    &at,
+                    "the node hierarchy has a cycle (a node is its own ancestor)",
+                ));
+            }
+            let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+            if !local.is_finite() {
+                return Err(self.err(&at, "a transform that is not finite"));
+            }
+            let world = parent_world * local;
+            if let Some(mesh) = node.mesh() {
+                for prim in mesh.primitives() {
+                    let key = (mesh.index(), prim.index());
+                    let id = match mesh_of.get(&key) {
+                        Some(&id) => id,
+                        None => {
+                            let id = match prim.mode() {
+                                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => {
+                                    let m = self.read_primitive(&mesh, &prim)?;
+                                    triangles += m.triangles.len();
+                                    if triangles > MAX_TRIANGLES {
+                                        return Err(self.err(
+                                            &at,
+                                            format!("more than {MAX_TRIANGLES} triangles"),
+                                        ));
+                                    }
+                                    self.asset.meshes.push(m);
+                                    Some((self.asset.meshes.len() - 1) as u32)
+                                }
+                                _ => {
+                                    skipped_modes += 1;
+                                    None
+                                }
+                            };
+                            mesh_of.insert(key, id);
+                            id
+                        }
+                    };
+                    if let Some(id) = id {
+                        self.asset.instances.push(Instance {
+                            mesh: id,
+                            transform: world,
+                        });
+                    }
+                }
+            }
+            if let Some(cam) = node.camera() {
+                match cam.projection() {
+                    gltf::camera::Projection::Perspective(p) => {
+                        if !(p.yfov() > 0.0 && p.yfov() < std::f32::consts::PI) {
+                            return Err(self.err(
+                                format!("cameras[{}].perspective.yfov", cam.index()),
+                                "a field of view outside (0, π)",
+                            ));
+                        }
+                        self.asset.cameras.push(AssetCamera {
+                            name: cam
+                                .name()
+                                .map_or_else(|| format!("camera {}", cam.index()), str::to_string),
+                            transform: world,
+                            yfov: p.yfov(),
+                            aspect_ratio: p.aspect_ratio().filter(|a| *a > 0.0 && a.is_finite()),
+                        });
+                    }
+                    gltf::camera::Projection::Orthographic(_) => self.asset.warnings.push(format!(
+                        "{}: cameras[{}]: orthographic cameras are not supported; skipped",
+                        self.file,
+                        cam.index()
+                    )),
+                }
+            }
+            for c in node.children().collect::<Vec<_>>().into_iter().rev() {
+                stack.push((c, world));
+            }
+        }
+        if skipped_modes > 0 {
+            self.asset.warnings.push(format!(
+                "{}: {skipped_modes} mesh primitive(s) of points or lines skipped",
+                self.file
+            ));
+        }
+        Ok(())
+    }
+
+    fn read_primitive(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+    ) -> Result<AssetMesh, AssetError> {
+        let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+        let attr = |name: &str| format!("{at}.attributes.{name}");
+        let pos_acc = prim
+            .get(&gltf::Semantic::Positions)
+            .ok_or_else(|| self.err(&at, "a primitive without POSITION"))?;
+        let positions: Vec<Vec3> = self
+            .read_floats::<3>(&pos_acc, &attr("POSITION"), &[Dimensions::Vec3])?
+            .into_iter()
+            .map(Vec3::from)
+            .collect();
+        if let Some(k) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(self.err(
+                attr("POSITION"),
+                format!("position {k} is not finite: {}", positions[k]),
+            ));
+        }
+        let n = positions.len();
+        let same_len = |len: usize, name: &str| -> Result<(), AssetError> {
+            if len == n {
+                Ok(())
+            } else {
+                Err(self.err(attr(name), format!("{len} values for {n} positions")))
+            }
+        };
+        let mut out = AssetMesh {
+            name: format!(
+                "{} mesh {} primitive {}",
+                self.file,
+                mesh.index(),
+                prim.index()
+            ),
+            positions,
+            material: prim.material().index().map(|i| i as u32),
+            ..AssetMesh::default()
+        };
+        if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+            let v = self.read_floats::<3>(&a, &attr("NORMAL"), &[Dimensions::Vec3])?;
+            same_len(v.len(), "NORMAL")?;
+            out.normals = v
+                .into_iter()
+                .map(|v| Vec3::from(v).try_normalize().unwrap_or(Vec3::ZERO))
+                .collect();
+        }
+        for (set, name) in [(0u32, "TEXCOORD_0"), (1, "TEXCOORD_1")] {
+            if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
+                let v = self.read_floats::<2>(&a, &attr(name), &[Dimensions::Vec2])?;
+                same_len(v.len(), name)?;
+                let v = v
+                    .into_iter()
+                    .map(|t| t.map(|c| if c.is_finite() { c } else { 0.0 }))
+                    .collect();
+                if set == 0 { out.uv0 = v } else { out.uv1 = v }
+            }
+        }
+        if let Some(a) = prim.get(&gltf::Semantic::Tangents) {
+            let v = self.read_floats::<4>(&a, &attr("TANGENT"), &[Dimensions::Vec4])?;
+            same_len(v.len(), "TANGENT")?;
+            out.tangents = v;
+        }
+        if let Some(a) = prim.get(&gltf::Semantic::Colors(0)) {
+            let v =
+                self.read_floats::<4>(&a, &attr("COLOR_0"), &[Dimensions::Vec3, Dimensions::Vec4])?;
+            same_len(v.len(), "COLOR_0")?;
+            out.colours = v;
+        }
+        let indices = match prim.indices() {
+            Some(a) => {
+                let v = self.read_indices(&a, &format!("{at}.indices"))?;
+                if let Some(&k) = v.iter().find(|&&k| k as usize >= n) {
+                    return Err(self.err(
+                        format!("{at}.indices"),
+                        format!("index {k} of {n} vertices"),
+                    ));
+                }
+                v
+            }
+            None => (0..n as u32).collect(),
+        };
+        out.triangles = assemble(&indices, prim.mode());
+        let needs_tangents = out
+            .material
+            .and_then(|m| self.asset.materials.get(m as usize))
+            .is_some_and(|m| m.normal_texture.is_some());
+        if needs_tangents && out.tangents.is_empty() {
+            if out.normals.is_empty() || out.uv0.is_empty() {
+                self.asset.warnings.push(format!(
+                    "{}: {at}: a normal texture on a mesh without normals or TEXCOORD_0; it is ignored",
+                    self.file
+                ));
+            } else {
+                out.tangents = generate_tangents(&out);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Triangles from the indices of a primitive of `mode` (as the glTF
+/// specification's section 3.7.2.1 lists them), degenerate ones (two equal
+/// indices) dropped.
+pub fn assemble(ix: &[u32], mode: Mode) -> Vec<[u32; 3]> {
+    let tris: Vec<[u32; 3]> = match mode {
+        Mode::Triangles => ix.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        Mode::TriangleStrip => (0..ix.len().saturating_sub(2))
+            .map(|i| {
+                let k = i % 2;
+                [ix[i], ix[i + 1 + k], ix[i + 2 - k]]
+            })
+            .collect(),
+        Mode::TriangleFan => (0..ix.len().saturating_sub(2))
+            .map(|i| [ix[i + 1], ix[i + 2], ix[0]])
+            .collect(),
+        _ => Vec::new(),
+    };
+    tris.into_iter()
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+        .collect()
+}
+
+/// MikkTSpace tangents of a mesh with normals and `TEXCOORD_0` (the glTF
+/// specification's choice), averaged per vertex over the triangles that
+/// share it; vertices MikkTSpace leaves without one get `(1, 0, 0, 1)`.
+fn generate_tangents(mesh: &AssetMesh) -> Vec<[f32; 4]> {
+    struct Geometry<'m> {
+        mesh: &'m AssetMesh,
+        out: Vec<[f32; 4]>,
+    }
+    impl bevy_mikktspace::Geometry for Geometry<'_> {
+        fn num_faces(&self) -> usize {
+            self.mesh.triangles.len()
+        }
+        fn num_vertices_of_face(&self, _face: usize) -> usize {
+            3
+        }
+        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.mesh.positions[self.mesh.triangles[face][vert] as usize].to_array()
+        }
+        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.mesh.normals[self.mesh.triangles[face][vert] as usize].to_array()
+        }
+        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+            self.mesh.uv0[self.mesh.triangles[face][vert] as usize]
+        }
+        fn set_tangent(
+            &mut self,
+            t: Option<bevy_mikktspace::TangentSpace>,
+            face: usize,
+            vert: usize,
+        ) {
+            if let Some(t) = t {
+                let v = self.mesh.triangles[face][vert] as usize;
+                let tan = t.tangent();
+                let w = if t.is_orientation_preserving() {
+                    1.0
+                } else {
+                    -1.0
+                };
+                let o = &mut self.out[v];
+                o[0] += tan[0];
+                o[1] += tan[1];
+                o[2] += tan[2];
+                o[3] = w;
+            }
+        }
+    }
+    let mut g = Geometry {
+        mesh,
+        out: vec![[0.0; 4]; mesh.positions.len()],
+    };
+    if bevy_mikktspace::generate_tangents(&mut g).is_err() {
+        return Vec::new();
+    }
+    g.out
+        .into_iter()
+        .map(|t| match Vec3::new(t[0], t[1], t[2]).try_normalize() {
+            Some(v) => [v.x, v.y, v.z, if t[3] < 0.0 { -1.0 } else { 1.0 }],
+            None => [1.0, 0.0, 0.0, 1.0],
+        })
+        .collect()
+}
+
+/// `%XX` escapes decoded (glTF URIs are URI-encoded relative paths).
+fn percent_decode(s: &str) -> String {
+    let hex = |c: u8| (c as char).to_digit(16);
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%'
+            && i + 2 < b.len()
+            && let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2]))
+        {
+            out.push((h * 16 + l) as u8);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}

@@ -1,0 +1,226 @@
+//! PLY (ASCII, binary little- and big-endian) to an [`Asset`], through the
+//! `ply-rs-bw` crate (which caps what it allocates ahead of the data it
+//! reads).
+//!
+//! Read: the `vertex` element's `x, y, z` (finite), normals `nx, ny, nz`,
+//! texture coordinates under their usual names (`u, v`, `s, t`,
+//! `texture_u, texture_v`, `texture_s, texture_t`), colours (`red, green,
+//! blue, alpha` or `r, g, b, a`, or `diffuse_red`…; 8-bit values are
+//! divided by 255, floats taken as they are, as linear RGB); the `face`
+//! element's `vertex_indices` (or `vertex_index`), polygons of any number
+//! of sides triangulated as fans. Other elements and properties are read
+//! past and ignored.
+
+use super::asset::{Asset, AssetError, AssetMesh, Instance};
+use glam::{Mat4, Vec3};
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{DefaultElement, Property, PropertyAccess, PropertyAccessResult};
+use std::io::BufRead;
+use std::path::Path;
+
+/// A vertex's properties, as read.
+#[derive(Default)]
+struct Vertex {
+    p: [f64; 3],
+    n: [f64; 3],
+    uv: [f64; 2],
+    c: [f64; 4],
+    /// Which groups were set: 1 normal, 2 uv, 4 colour, 8 alpha.
+    has: u8,
+}
+
+/// A scalar property's value; 8-bit and 16-bit unsigned colour values
+/// are scaled to `[0, 1]` when `colour`.
+fn scalar(p: &Property, colour: bool) -> Option<f64> {
+    Some(match *p {
+        Property::Char(v) => v as f64,
+        Property::UChar(v) => v as f64 / if colour { 255.0 } else { 1.0 },
+        Property::Short(v) => v as f64,
+        Property::UShort(v) => v as f64 / if colour { 65_535.0 } else { 1.0 },
+        Property::Int(v) => v as f64,
+        Property::UInt(v) => v as f64,
+        Property::Float(v) => v as f64,
+        Property::Double(v) => v,
+        _ => return None,
+    })
+}
+
+impl PropertyAccess for Vertex {
+    fn new() -> Self {
+        Self::default()
+    }
+    fn set_property(&mut self, name: &str, p: Property) -> PropertyAccessResult {
+        let colour = matches!(
+            name,
+            "red"
+                | "green"
+                | "blue"
+                | "alpha"
+                | "r"
+                | "g"
+                | "b"
+                | "a"
+                | "diffuse_red"
+                | "diffuse_green"
+                | "diffuse_blue"
+        );
+        let Some(v) = scalar(&p, colour) else {
+            return PropertyAccessResult::Ignored;
+        };
+        match name {
+            "x" => self.p[0] = v,
+            "y" => self.p[1] = v,
+            "z" => self.p[2] = v,
+            "nx" => (self.n[0], self.has) = (v, self.has | 1),
+            "ny" => (self.n[1], self.has) = (v, self.has | 1),
+            "nz" => (self.n[2], self.has) = (v, self.has | 1),
+            "u" | "s" | "texture_u" | "texture_s" => (self.uv[0], self.has) = (v, self.has | 2),
+            "v" | "t" | "texture_v" | "texture_t" => (self.uv[1], self.has) = (v, self.has | 2),
+            "red" | "r" | "diffuse_red" => (self.c[0], self.has) = (v, self.has | 4),
+            "green" | "g" | "diffuse_green" => (self.c[1], self.has) = (v, self.has | 4),
+            "blue" | "b" | "diffuse_blue" => (self.c[2], self.has) = (v, self.has | 4),
+            "alpha" | "a" => (self.c[3], self.has) = (v, self.has | 8),
+            _ => return PropertyAccessResult::Ignored,
+        }
+        PropertyAccessResult::Set
+    }
+}
+
+/// A face's vertex indices (negative ones kept as such, to be refused).
+#[derive(Default)]
+struct Face {
+    indices: Vec<i64>,
+}
+
+impl PropertyAccess for Face {
+    fn new() -> Self {
+        Self::default()
+    }
+    fn set_property(&mut self, name: &str, p: Property) -> PropertyAccessResult {
+        if name != "vertex_indices" && name != "vertex_index" {
+            return PropertyAccessResult::Ignored;
+        }
+        self.indices = match p {
+            Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+            _ => return PropertyAccessResult::UnsupportedType,
+        };
+        PropertyAccessResult::Set
+    }
+}
+
+/// Reads the PLY file at `path`.
+pub fn load(path: &Path) -> Result<Asset, AssetError> {
+    let file = path.display().to_string();
+    let f = std::fs::File::open(path)
+        .map_err(|e| AssetError::new(&file, "", format!("cannot read the file: {e}")))?;
+    read(std::io::BufReader::new(f), &file)
+}
+
+/// Reads a PLY file from `source`; `file` names it in errors.
+pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
+    let err = |at: String, m: String| AssetError::new(file, at, m);
+    let ply_err = |e: ply_rs_bw::parser::ParseError| {
+        let at = e.line().map_or_else(String::new, |l| format!("line {l}"));
+        AssetError::new(file, at, format!("not a readable PLY file: {e}"))
+    };
+    let mut reader = Reader::new(source);
+    let vertex_parser = Parser::<Vertex>::new();
+    let face_parser = Parser::<Face>::new();
+    let other_parser = Parser::<DefaultElement>::new();
+    let header = vertex_parser.read_header(&mut reader).map_err(ply_err)?;
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    for element in header.elements.values() {
+        match element.name.as_str() {
+            "vertex" => {
+                vertices = vertex_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?
+            }
+            "face" => {
+                faces = face_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?
+            }
+            _ => {
+                other_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?;
+            }
+        }
+    }
+    let n = vertices.len();
+    let all = |bit: u8| !vertices.is_empty() && vertices.iter().all(|v: &Vertex| v.has & bit != 0);
+    let mut mesh = AssetMesh {
+        name: file.to_string(),
+        ..AssetMesh::default()
+    };
+    for (k, v) in vertices.iter().enumerate() {
+        let p = Vec3::new(v.p[0] as f32, v.p[1] as f32, v.p[2] as f32);
+        if !p.is_finite() {
+            return Err(err(
+                "element vertex".into(),
+                format!("vertex {k} is not finite: {p}"),
+            ));
+        }
+        mesh.positions.push(p);
+    }
+    if all(1) {
+        mesh.normals = vertices
+            .iter()
+            .map(|v| {
+                Vec3::new(v.n[0] as f32, v.n[1] as f32, v.n[2] as f32)
+                    .try_normalize()
+                    .unwrap_or(Vec3::ZERO)
+            })
+            .collect();
+    }
+    if all(2) {
+        // PLY's v runs up the image (OpenGL's convention); glTF's runs down.
+        mesh.uv0 = vertices
+            .iter()
+            .map(|v| [v.uv[0] as f32, 1.0 - v.uv[1] as f32])
+            .map(|t| t.map(|c| if c.is_finite() { c } else { 0.0 }))
+            .collect();
+    }
+    if all(4) {
+        let alpha = all(8);
+        mesh.colours = vertices
+            .iter()
+            .map(|v| {
+                let a = if alpha { v.c[3] } else { 1.0 };
+                [v.c[0], v.c[1], v.c[2], a].map(|c| (c as f32).clamp(0.0, 1.0))
+            })
+            .collect();
+    }
+    for (k, f) in faces.iter().enumerate() {
+        if let Some(&i) = f.indices.iter().find(|&&i| i < 0 || i as usize >= n) {
+            return Err(err(
+                "element face".into(),
+                format!("face {k} refers to vertex {i} of {n}"),
+            ));
+        }
+        for j in 1..f.indices.len().saturating_sub(1) {
+            let t = [f.indices[0], f.indices[j], f.indices[j + 1]].map(|i| i as u32);
+            if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                mesh.triangles.push(t);
+            }
+        }
+    }
+    let mut asset = Asset::default();
+    if mesh.triangles.is_empty() {
+        asset
+            .warnings
+            .push(format!("{file}: no faces: a point cloud is not rendered"));
+    }
+    asset.meshes.push(mesh);
+    asset.instances.push(Instance {
+        mesh: 0,
+        transform: Mat4::IDENTITY,
+    });
+    Ok(asset)
+}

@@ -1,0 +1,415 @@
+//! glTF's metallic-roughness BRDF (`bsdf::metallic_roughness`): its value
+//! against the specification's Appendix B written out independently in
+//! f64, sampling against the density (χ² over metallic × roughness, with a
+//! broken variant the test must reject), reciprocity, white furnaces, the
+//! roughness → 0 limit of a metal (a mirror), and SIMD ≡ scalar bit for
+//! bit.
+
+mod chi2;
+
+use chi2::{Domain, Outcome, frame, sidak};
+use glam::DVec3;
+use std::f64::consts::PI;
+use wavetrace::integrator::bsdf::metallic_roughness::{self as mr, Params};
+use wavetrace::integrator::bsdf::{diffuse, metal, mirror};
+use wavetrace::integrator::sampler::PathRng;
+use wavetrace::math::V3;
+use wide::f32x8;
+
+const METALLIC: [f32; 3] = [0.0, 0.5, 1.0];
+const ROUGHNESS: [f32; 3] = [0.3, 0.6, 1.0];
+const COS_O: [f64; 2] = [0.9, 0.3];
+/// χ² tests of the correct sampler in this file.
+const CHI2_TESTS: usize = METALLIC.len() * ROUGHNESS.len() * COS_O.len();
+const CHI2_SAMPLES: usize = 400_000;
+
+fn level() -> f64 {
+    sidak(0.01, CHI2_TESTS)
+}
+
+struct Rng(PathRng);
+
+impl Rng {
+    fn new(seed: u64) -> Self {
+        Self(PathRng::new(seed, 0, 0))
+    }
+    fn f(&mut self) -> f32 {
+        self.0.next_f32()
+    }
+    fn d(&mut self) -> f64 {
+        (self.f() as f64 + self.f() as f64 / 16_777_216.0).min(1.0 - 1e-16)
+    }
+    fn u2(&mut self) -> [f32; 2] {
+        [self.f(), self.f()]
+    }
+    fn unit(&mut self) -> DVec3 {
+        let z = 2.0 * self.d() - 1.0;
+        let p = 2.0 * PI * self.d();
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        DVec3::new(s * p.cos(), s * p.sin(), z)
+    }
+}
+
+fn v32(v: DVec3) -> V3<f32> {
+    V3::new(v.x as f32, v.y as f32, v.z as f32)
+}
+
+fn v64(v: V3<f32>) -> DVec3 {
+    DVec3::new(v.x as f64, v.y as f64, v.z as f64)
+}
+
+/// A random unit normal, the test's own frame around it, and `wo` at the
+/// given cosine.
+struct Setup {
+    n: V3<f32>,
+    wo: V3<f32>,
+    t: DVec3,
+    b: DVec3,
+    nn: DVec3,
+}
+
+impl Setup {
+    fn new(rng: &mut Rng, cos_o: f64) -> Self {
+        let n = v32(rng.unit());
+        let nn = v64(n).normalize();
+        let (t, b, _) = frame(nn);
+        let p = 2.0 * PI * rng.d();
+        let s = (1.0 - cos_o * cos_o).max(0.0).sqrt();
+        let wo = v32(t * (s * p.cos()) + b * (s * p.sin()) + nn * cos_o);
+        Self { n, wo, t, b, nn }
+    }
+    fn local(&self, w: V3<f32>) -> DVec3 {
+        let w = v64(w);
+        DVec3::new(w.dot(self.t), w.dot(self.b), w.dot(self.nn))
+    }
+    fn world(&self, l: DVec3) -> V3<f32> {
+        v32(self.t * l.x + self.b * l.y + self.nn * l.z)
+    }
+}
+
+fn params(base: [f32; 3], metallic: f32, roughness: f32) -> Params<f32> {
+    Params {
+        base: V3::new(base[0], base[1], base[2]),
+        metallic,
+        alpha: roughness * roughness,
+    }
+}
+
+const BASE: [f32; 3] = [0.8, 0.5, 0.2];
+
+/// glTF 2.0 Appendix B, written out from the specification in f64 (its
+/// `D`, its height-correlated `V`, its Schlick terms and its two mixes),
+/// one channel.
+fn appendix_b(n: DVec3, v: DVec3, l: DVec3, base: f64, metallic: f64, roughness: f64) -> f64 {
+    let (nv, nl) = (n.dot(v), n.dot(l));
+    if nv <= 0.0 || nl <= 0.0 {
+        return 0.0;
+    }
+    let h = (v + l).normalize();
+    let (nh, vh) = (n.dot(h), v.dot(h));
+    let a = roughness * roughness;
+    let a2 = a * a;
+    let d = a2 / (PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
+    let vis = 1.0
+        / ((nl.abs() + (a2 + (1.0 - a2) * nl * nl).sqrt())
+            * (nv.abs() + (a2 + (1.0 - a2) * nv * nv).sqrt()));
+    let specular_brdf = vis * d;
+    let diffuse_brdf = base / PI;
+    let metal_brdf = specular_brdf * (base + (1.0 - base) * (1.0 - vh.abs()).powi(5));
+    let fr = 0.04 + (1.0 - 0.04) * (1.0 - vh.abs()).powi(5);
+    let dielectric_brdf = diffuse_brdf * (1.0 - fr) + specular_brdf * fr;
+    dielectric_brdf * (1.0 - metallic) + metal_brdf * metallic
+}
+
+fn check(name: &str, o: &Outcome, expect_pass: bool) {
+    eprintln!(
+        "chi2 {name}: p = {:.4e}, stat = {:.1}, dof = {}, pooled = {}, mass = {:.5}, impossible = {}",
+        o.p, o.stat, o.dof, o.pooled, o.mass, o.impossible
+    );
+    if expect_pass {
+        assert!(o.p >= level(), "{name}: p = {} below {}", o.p, level());
+    } else {
+        assert!(
+            o.p < level(),
+            "{name}: a broken variant passed: p = {}",
+            o.p
+        );
+    }
+}
+
+fn chi2_case(
+    rng: &mut Rng,
+    p: &Params<f32>,
+    cos_o: f64,
+    claimed_pdf: impl Fn(V3<f32>, V3<f32>, V3<f32>) -> f32,
+) -> Outcome {
+    let s = Setup::new(rng, cos_o);
+    Domain::default().test(
+        CHI2_SAMPLES,
+        || {
+            let smp = mr::sample(s.n, s.wo, p, rng.u2());
+            (smp.pdf > 0.0 && smp.cos > 0.0).then(|| s.local(smp.wi))
+        },
+        |l| claimed_pdf(s.n, s.wo, s.world(l)) as f64,
+    )
+}
+
+#[test]
+fn chi2_sampling_matches_the_density_over_metallic_and_roughness() {
+    let mut rng = Rng::new(21);
+    for metallic in METALLIC {
+        for roughness in ROUGHNESS {
+            let p = params(BASE, metallic, roughness);
+            for cos_o in COS_O {
+                let o = chi2_case(&mut rng, &p, cos_o, |n, wo, wi| mr::pdf(n, wo, wi, &p));
+                check(
+                    &format!("metallic {metallic}, roughness {roughness}, cos θo {cos_o}"),
+                    &o,
+                    true,
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn chi2_rejects_a_density_with_the_wrong_lobe_mixture() {
+    // Broken: the density as if the lobes were chosen half and half.
+    let mut rng = Rng::new(22);
+    let p = params(BASE, 0.0, 0.3);
+    let o = chi2_case(&mut rng, &p, 0.9, |n, wo, wi| {
+        0.5 * metal::pdf(n, wo, wi, p.alpha) + 0.5 * diffuse::pdf_cosine(n, wi)
+    });
+    check("broken: lobes mixed half and half", &o, false);
+    // Broken: the specular density with α = roughness (not roughness²).
+    let o = chi2_case(&mut rng, &p, 0.3, |n, wo, wi| {
+        let q = Params { alpha: 0.6, ..p };
+        mr::pdf(n, wo, wi, &q)
+    });
+    check("broken: specular density with α = roughness", &o, false);
+}
+
+#[test]
+fn value_is_appendix_b_and_samples_agree_with_eval_and_pdf() {
+    let mut rng = Rng::new(23);
+    let mut worst = [0.0f64; 3];
+    for i in 0..200_000 {
+        let metallic = [0.0f32, 0.3, 1.0][i % 3];
+        let roughness = [0.05f32, 0.2, 0.5, 0.8, 1.0][i % 5];
+        let p = params(BASE, metallic, roughness);
+        let s = {
+            let c = rng.d().max(1e-2);
+            Setup::new(&mut rng, c)
+        };
+        let smp = mr::sample(s.n, s.wo, &p, rng.u2());
+        if smp.f.x == 0.0 && smp.f.z == 0.0 {
+            assert_eq!((smp.cos, smp.pdf), (0.0, 1.0));
+            continue;
+        }
+        let f = mr::eval(s.n, s.wo, smp.wi, &p);
+        let pdf = mr::pdf(s.n, s.wo, smp.wi, &p);
+        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+        worst[0] = worst[0].max(rel(f.z as f64, smp.f.z as f64));
+        worst[1] = worst[1].max(rel(pdf as f64, smp.pdf as f64));
+        if smp.cos > 1e-3 && roughness >= 0.2 {
+            for (c, got) in [f.x, f.y, f.z].into_iter().enumerate() {
+                let want = appendix_b(
+                    v64(s.n),
+                    v64(s.wo),
+                    v64(smp.wi),
+                    BASE[c] as f64,
+                    metallic as f64,
+                    roughness as f64,
+                );
+                if rel(got as f64, want) > 1e-3 {
+                    eprintln!(
+                        "{got} vs {want}: metallic {metallic} roughness {roughness} cos {} {}",
+                        smp.cos,
+                        v64(s.n).dot(v64(s.wo))
+                    );
+                }
+                worst[2] = worst[2].max(rel(got as f64, want));
+            }
+        }
+    }
+    eprintln!(
+        "metallic-roughness worst relative differences: f {:.2e}, pdf {:.2e}, vs Appendix B (f64) {:.2e}",
+        worst[0], worst[1], worst[2]
+    );
+    assert!(worst.iter().all(|&w| w < 2e-3), "{worst:?}");
+}
+
+#[test]
+fn reciprocal_bitwise() {
+    let mut rng = Rng::new(24);
+    let mut nonzero = 0;
+    for i in 0..200_000 {
+        let p = params(BASE, [0.0, 0.4, 1.0][i % 3], [0.0, 0.1, 0.5, 1.0][i % 4]);
+        let n = v32(rng.unit());
+        let (a, b) = (v32(rng.unit()), v32(rng.unit()));
+        let (f, g) = (mr::eval(n, a, b, &p), mr::eval(n, b, a, &p));
+        for (x, y) in [(f.x, g.x), (f.y, g.y), (f.z, g.z)] {
+            assert!(x.is_finite() && x >= 0.0);
+            assert_eq!(x.to_bits(), y.to_bits(), "{x} vs {y}");
+        }
+        nonzero += (f.x > 0.0) as u32;
+    }
+    assert!(nonzero > 20_000);
+}
+
+/// `∫ f cos dωi` for one channel of Appendix B, by the midpoint rule on
+/// `(cos θi, φ)`, `wo` at `cos θo` in the xz plane.
+fn albedo_quadrature(cos_o: f64, base: f64, metallic: f64, roughness: f64) -> f64 {
+    let (nc, np) = (600, 600);
+    let n = DVec3::Z;
+    let wo = DVec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+    let mut sum = 0.0;
+    for i in 0..nc {
+        let c = (i as f64 + 0.5) / nc as f64;
+        let s = (1.0 - c * c).sqrt();
+        for j in 0..np {
+            let phi = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+            let wi = DVec3::new(s * phi.cos(), s * phi.sin(), c);
+            sum += appendix_b(n, wo, wi, base, metallic, roughness) * c;
+        }
+    }
+    sum / nc as f64 * 2.0 * PI / np as f64
+}
+
+#[test]
+fn white_furnace() {
+    let mut rng = Rng::new(25);
+    let mut excess = 0.0f64;
+    for metallic in [0.0f32, 0.5, 1.0] {
+        for roughness in [0.3f32, 0.6, 1.0] {
+            let mut line = format!("furnace metallic {metallic} roughness {roughness}:");
+            let p = params([1.0; 3], metallic, roughness);
+            for cos_o in [1.0f64, 0.7, 0.3, 0.1] {
+                let s = Setup::new(&mut rng, cos_o);
+                let n_samples = 200_000;
+                let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+                for _ in 0..n_samples {
+                    let w = mr::sample(s.n, s.wo, &p, rng.u2())
+                        .weigh(V3::new(1.0, 1.0, 1.0))
+                        .x as f64;
+                    assert!(w.is_finite() && w >= 0.0);
+                    sum += w;
+                    sum2 += w * w;
+                }
+                let mean = sum / n_samples as f64;
+                let sigma = ((sum2 / n_samples as f64 - mean * mean) / n_samples as f64).sqrt();
+                let quad = albedo_quadrature(cos_o, 1.0, metallic as f64, roughness as f64);
+                line += &format!(" cos θo {cos_o}: MC {mean:.4} ± {sigma:.1e}, quad {quad:.4};");
+                assert!((mean - quad).abs() < 5.0 * sigma + 2e-3, "{line}");
+                // A metal never reflects more than it receives, nor does any
+                // surface at normal incidence.
+                if metallic == 1.0 || cos_o == 1.0 {
+                    assert!(mean <= 1.0 + 5.0 * sigma && quad <= 1.0 + 1e-3, "{line}");
+                } else {
+                    excess = excess.max(quad - 1.0);
+                }
+            }
+            eprintln!("{line}");
+        }
+    }
+    eprintln!("Appendix B's dielectric part: largest albedo above 1: {excess:.4}");
+}
+
+#[test]
+fn a_smooth_metal_tends_to_a_mirror() {
+    let mut rng = Rng::new(26);
+    for roughness in [1e-2f32, 1e-3, 0.0] {
+        let p = params([1.0; 3], 1.0, roughness);
+        let a = metal::clamp_alpha(roughness * roughness) as f64;
+        let mut angles = Vec::new();
+        let mut min_weight = f64::INFINITY;
+        for _ in 0..50_000 {
+            let s = {
+                let c = rng.d().max(0.05);
+                Setup::new(&mut rng, c)
+            };
+            let smp = mr::sample(s.n, s.wo, &p, rng.u2());
+            let mirror_dir = v64(mirror::sample(s.n, s.wo, p.base).wi);
+            angles.push(
+                v64(smp.wi)
+                    .normalize()
+                    .dot(mirror_dir.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos(),
+            );
+            let w = smp.weigh(V3::new(1.0, 1.0, 1.0)).x as f64;
+            assert!(w.is_finite());
+            if smp.f.x > 0.0 {
+                min_weight = min_weight.min(w);
+            }
+        }
+        angles.sort_by(f64::total_cmp);
+        let median = angles[angles.len() / 2];
+        eprintln!(
+            "roughness {roughness}: median angle to the mirror {median:.2e}, least weight {min_weight:.6}"
+        );
+        assert!(median < 3.0 * a + 1e-6, "median {median}");
+        // White base colour: F = 1 at every angle, so the weight is G2/G1 → 1.
+        assert!(
+            min_weight > 1.0 - 0.2 * roughness as f64 - 1e-3,
+            "{min_weight}"
+        );
+    }
+}
+
+/// One lane's normal, `wo`, `wi`, parameters and direction numbers.
+type Lane = (V3<f32>, V3<f32>, V3<f32>, Params<f32>, [f32; 2]);
+
+#[test]
+fn simd_equals_scalar_bitwise() {
+    let mut rng = Rng::new(27);
+    for _ in 0..5_000 {
+        let lanes: [Lane; 8] = std::array::from_fn(|_| {
+            let n = v32(rng.unit());
+            let wo = v32(rng.unit());
+            let wi = v32(rng.unit());
+            let p = Params {
+                base: V3::new(rng.f(), rng.f(), rng.f()),
+                metallic: rng.f(),
+                alpha: rng.f() * rng.f(),
+            };
+            (n, wo, wi, p, rng.u2())
+        });
+        let v8 = |g: &dyn Fn(usize) -> V3<f32>| {
+            let a: [V3<f32>; 8] = std::array::from_fn(g);
+            V3::new(
+                f32x8::from(a.map(|v| v.x)),
+                f32x8::from(a.map(|v| v.y)),
+                f32x8::from(a.map(|v| v.z)),
+            )
+        };
+        let s8 = |g: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn::<f32, 8, _>(g));
+        let n = v8(&|l| lanes[l].0);
+        let wo = v8(&|l| lanes[l].1);
+        let wi = v8(&|l| lanes[l].2);
+        let p = Params {
+            base: v8(&|l| lanes[l].3.base),
+            metallic: s8(&|l| lanes[l].3.metallic),
+            alpha: s8(&|l| lanes[l].3.alpha),
+        };
+        let u = [s8(&|l| lanes[l].4[0]), s8(&|l| lanes[l].4[1])];
+        let f8 = mr::eval(n, wo, wi, &p);
+        let p8 = mr::pdf(n, wo, wi, &p);
+        let smp8 = mr::sample(n, wo, &p, u);
+        for (l, (n, wo, wi, p, u)) in lanes.iter().enumerate() {
+            let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+            let lane =
+                |v: V3<f32x8>| V3::new(v.x.to_array()[l], v.y.to_array()[l], v.z.to_array()[l]);
+            assert_eq!(bits(mr::eval(*n, *wo, *wi, p)), bits(lane(f8)));
+            assert_eq!(
+                mr::pdf(*n, *wo, *wi, p).to_bits(),
+                p8.to_array()[l].to_bits()
+            );
+            let s = mr::sample(*n, *wo, p, *u);
+            assert_eq!(bits(s.wi), bits(lane(smp8.wi)));
+            assert_eq!(bits(s.f), bits(lane(smp8.f)));
+            assert_eq!(s.pdf.to_bits(), smp8.pdf.to_array()[l].to_bits());
+            assert_eq!(s.cos.to_bits(), smp8.cos.to_array()[l].to_bits());
+        }
+    }
+}
