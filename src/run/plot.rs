@@ -9,6 +9,9 @@ use crate::fs::{FileError, write_atomic};
 use crate::run::converge::Curve;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters_backend::{
+    BackendColor, BackendCoord, BackendTextStyle, DrawingErrorKind, text_anchor,
+};
 use std::io::Write;
 use std::path::Path;
 
@@ -21,6 +24,143 @@ fn register_font() {
         plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
             .unwrap_or_else(|_| panic!("the built-in font loads"));
     });
+}
+
+/// A bitmap that draws its text itself. plotters' own text drawing
+/// (its `ab_glyph` font code) places each glyph's inked box at the pen
+/// position, dropping the glyph's left side bearing, so in a monospace font
+/// a narrow glyph sat at the left of its cell: tick labels read `0. 01`.
+/// This draws each glyph at its true origin; everything else is the
+/// bitmap's own, and text is laid out and anchored as plotters does.
+struct Bitmap<'a>(BitMapBackend<'a>);
+
+type DrawResult<'a> =
+    std::result::Result<(), DrawingErrorKind<<BitMapBackend<'a> as DrawingBackend>::ErrorType>>;
+
+impl<'a> DrawingBackend for Bitmap<'a> {
+    type ErrorType = <BitMapBackend<'a> as DrawingBackend>::ErrorType;
+
+    fn get_size(&self) -> (u32, u32) {
+        self.0.get_size()
+    }
+    fn ensure_prepared(&mut self) -> DrawResult<'a> {
+        self.0.ensure_prepared()
+    }
+    fn present(&mut self) -> DrawResult<'a> {
+        self.0.present()
+    }
+    fn draw_pixel(&mut self, point: BackendCoord, color: BackendColor) -> DrawResult<'a> {
+        self.0.draw_pixel(point, color)
+    }
+    fn draw_line<S: plotters_backend::BackendStyle>(
+        &mut self,
+        from: BackendCoord,
+        to: BackendCoord,
+        style: &S,
+    ) -> DrawResult<'a> {
+        self.0.draw_line(from, to, style)
+    }
+    fn draw_rect<S: plotters_backend::BackendStyle>(
+        &mut self,
+        upper_left: BackendCoord,
+        bottom_right: BackendCoord,
+        style: &S,
+        fill: bool,
+    ) -> DrawResult<'a> {
+        self.0.draw_rect(upper_left, bottom_right, style, fill)
+    }
+    fn draw_path<S: plotters_backend::BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        path: I,
+        style: &S,
+    ) -> DrawResult<'a> {
+        self.0.draw_path(path, style)
+    }
+    fn draw_circle<S: plotters_backend::BackendStyle>(
+        &mut self,
+        center: BackendCoord,
+        radius: u32,
+        style: &S,
+        fill: bool,
+    ) -> DrawResult<'a> {
+        self.0.draw_circle(center, radius, style, fill)
+    }
+    fn fill_polygon<S: plotters_backend::BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        vert: I,
+        style: &S,
+    ) -> DrawResult<'a> {
+        self.0.fill_polygon(vert, style)
+    }
+    fn blit_bitmap(&mut self, pos: BackendCoord, size: (u32, u32), src: &[u8]) -> DrawResult<'a> {
+        self.0.blit_bitmap(pos, size, src)
+    }
+
+    fn draw_text<S: BackendTextStyle>(
+        &mut self,
+        text: &str,
+        style: &S,
+        pos: BackendCoord,
+    ) -> DrawResult<'a> {
+        use ab_glyph::{Font, ScaleFont};
+        let color = style.color();
+        if color.alpha == 0.0 {
+            return Ok(());
+        }
+        // plotters' layout (the box is the advances' sum by the size) and
+        // anchoring, so labels sit where they always did.
+        let ((min_x, min_y), (max_x, max_y)) = style
+            .layout_box(text)
+            .map_err(|e| DrawingErrorKind::FontError(Box::new(e)))?;
+        let (width, height) = (max_x - min_x, max_y - min_y);
+        let dx = match style.anchor().h_pos {
+            text_anchor::HPos::Left => 0,
+            text_anchor::HPos::Right => -width,
+            text_anchor::HPos::Center => -width / 2,
+        };
+        let dy = match style.anchor().v_pos {
+            text_anchor::VPos::Top => 0,
+            text_anchor::VPos::Center => -height / 2,
+            text_anchor::VPos::Bottom => -height,
+        };
+        let font = ab_glyph::FontRef::try_from_slice(FONT).expect("the built-in font loads");
+        let size = style.size() as f32;
+        let font = font.as_scaled(size);
+        let trans = style.transform();
+        let (w, h) = self.get_size();
+        let mut pen = 0f32;
+        let mut prev = None;
+        let mut ink = Vec::new();
+        for c in text.chars() {
+            let id = font.glyph_id(c);
+            if let Some(p) = prev {
+                pen += font.kern(p, id);
+            }
+            prev = Some(id);
+            // Positioned at its origin: its box then starts at the pen plus
+            // its left side bearing.
+            let glyph = id.with_scale_and_position(size, ab_glyph::point(pen, 0.0));
+            if let Some(outline) = font.outline_glyph(glyph) {
+                let b = outline.px_bounds();
+                // plotters' vertical placement: the baseline at size / 2.
+                let (x0, y0) = (b.min.x as i32, (size / 2.0 + b.min.y) as i32);
+                outline.draw(|x, y, c| ink.push((x0 + x as i32, y0 + y as i32, c)));
+            }
+            pen += font.h_advance(id);
+        }
+        for (x, y, coverage) in ink {
+            let (x, y) = trans.transform(x + dx - min_x, y + dy - min_y);
+            let (x, y) = (pos.0 + x, pos.1 + y);
+            if x >= 0 && x < w as i32 && y >= 0 && y < h as i32 {
+                let c = BackendColor {
+                    alpha: color.alpha * f64::from(coverage),
+                    rgb: color.rgb,
+                };
+                self.0.draw_pixel((x, y), c)?;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The horizontal axis of an error plot.
@@ -183,7 +323,7 @@ pub fn plot_png(curves: &[Curve], x: XAxis, title: &str) -> std::io::Result<Vec<
     let (w, h) = PLOT_SIZE;
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        let root = Bitmap(BitMapBackend::with_buffer(&mut rgb, (w, h))).into_drawing_area();
         draw(&root, curves, x, title)?;
     }
     png(&rgb, w, h)
@@ -239,7 +379,8 @@ pub fn crop_strip_png(
         blit(columns - 1, row as u32, reference);
     }
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        let root =
+            Bitmap(BitMapBackend::with_buffer(&mut rgb, (width, height))).into_drawing_area();
         let style = TextStyle::from((FAMILY, 14).into_font()).color(&BLACK);
         let spps: Vec<String> = curves
             .iter()
@@ -277,6 +418,45 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
+    use plotters::prelude::*;
+
+    /// Where the ink of `text` begins and ends, in columns, drawn at x = 0
+    /// left-anchored in a plot's label font.
+    fn ink_columns(text: &str) -> (usize, usize) {
+        super::register_font();
+        let (w, h) = (200u32, 40u32);
+        let mut rgb = vec![255u8; (w * h * 3) as usize];
+        {
+            let root =
+                super::Bitmap(BitMapBackend::with_buffer(&mut rgb, (w, h))).into_drawing_area();
+            let style = TextStyle::from((super::FAMILY, 20).into_font()).color(&BLACK);
+            root.draw(&Text::new(text.to_string(), (0, 10), &style))
+                .unwrap();
+            root.present().unwrap();
+        }
+        let inked = |x: u32| (0..h).any(|y| rgb[((y * w + x) * 3) as usize] < 128);
+        let columns: Vec<u32> = (0..w).filter(|&x| inked(x)).collect();
+        (columns[0] as usize, *columns.last().unwrap() as usize)
+    }
+
+    #[test]
+    fn glyphs_keep_their_side_bearings() {
+        // A monospace font: every glyph has the same advance, and a full
+        // stop sits in the middle of its cell, not at its left edge (where
+        // plotters' own text drawing put it: "0. 01").
+        let (dot_start, _) = ink_columns(".");
+        let (zero_start, zero_end) = ink_columns("0");
+        assert!(dot_start >= zero_start + 3, "{dot_start} {zero_start}");
+        // In "0.01" the 0s keep their cells: each ends one advance after
+        // the one before.
+        let cell = ink_columns("00").1 - zero_end;
+        assert!(cell >= 8, "{cell}");
+        // (Within a pixel: the advance is not a whole number of them.)
+        let third = ink_columns("0.0").1 as i64;
+        assert!((third - (zero_end + 2 * cell) as i64).abs() <= 1, "{third}");
+        assert_eq!(ink_columns("0.01").0, zero_start);
+    }
+
     #[test]
     fn tick_labels() {
         use super::short;
