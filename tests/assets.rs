@@ -5,10 +5,15 @@
 //! and hostile mutations of them, and PLY in ASCII and both binary
 //! byte orders.
 
+mod common;
+
 use base64::Engine;
+use common::{TempDir, run_ok, stderr};
 use glam::{Mat4, Vec3};
 use std::path::{Path, PathBuf};
+use wavetrace::render::{Engine as RenderEngine, RenderSettings, Renderer};
 use wavetrace::scene::asset::{AlphaMode, Asset, AssetError};
+use wavetrace::scene::asset_scene;
 use wavetrace::scene::texture::{Filter, Wrap};
 use wavetrace::scene::{gltf, ply};
 
@@ -593,4 +598,93 @@ fn ply_ascii_and_binary_in_both_byte_orders_read_alike() {
         eprintln!("refused: {e}");
         assert!(e.to_string().starts_with("test.ply"));
     }
+}
+
+// ---------------------------------------------------------------------------
+// Scenes from assets
+
+/// Both engines at 32 × 24 pixels, 2 samples a pixel: they trace the same
+/// paths and differ by the order of summation only (as tests/wavefront.rs
+/// holds them).
+fn engines_agree(name: &str, scene: &wavetrace::scene::Scene) {
+    let film = |engine| {
+        let mut s = RenderSettings::for_scene(scene);
+        (s.width, s.height, s.spp, s.engine) = (32, 24, 2, engine);
+        Renderer::new(scene, &s).unwrap().render().0
+    };
+    let (a, b) = (film(RenderEngine::Reference), film(RenderEngine::Wavefront));
+    let (ra, rb) = (a.to_rgb(), b.to_rgb());
+    let mut sum = 0.0f64;
+    for (i, (pa, pb)) in ra.iter().zip(&rb).enumerate() {
+        for c in 0..3 {
+            let (x, y) = (pa[c], pb[c]);
+            assert!(
+                (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
+                "{name}: pixel {i} channel {c}: reference {x}, wavefront {y}"
+            );
+            sum += x as f64;
+        }
+    }
+    assert!(sum > 0.0, "{name}: a black image");
+}
+
+#[test]
+fn an_asset_becomes_a_scene_both_engines_render_alike() {
+    // A PLY quad and triangle, written here.
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+               property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+               0 0 0\n1 0 0\n1 0 -1\n0 0 -1\n4 0 1 2 3\n";
+    let asset = ply::read(std::io::Cursor::new(ply.as_bytes().to_vec()), "quad.ply").unwrap();
+    let scene = asset_scene::scene_from_asset(&asset, "quad", "quad.ply", None).unwrap();
+    // Two triangles, and the default light's two (nothing emits).
+    assert_eq!(scene.triangles.len(), 4);
+    assert!(scene.triangles[..2].iter().all(|t| t.normal.y > 0.99));
+    assert!(scene.triangles[2..].iter().all(|t| t.normal.y < -0.99));
+    // The default camera sees every vertex.
+    let cam = &scene.camera;
+    for t in &scene.triangles[..2] {
+        for v in t.v {
+            let d = v - cam.position;
+            let z = d.dot(cam.forward);
+            let (x, y) = (d.dot(cam.right) / z, d.dot(cam.up) / z);
+            let half_h = cam.height as f32 * 0.5 / cam.focal_length_px;
+            assert!(
+                z > 0.0 && y.abs() < half_h && x.abs() < half_h * 4.0 / 3.0,
+                "{v}"
+            );
+        }
+    }
+    engines_agree("quad.ply", &scene);
+    // A mirroring transform keeps the front where the file has it.
+    let nodes = r#""nodes": [{"mesh": 0, "scale": [-1, 1, 1]}], "scenes": [{"nodes": [0]}]"#;
+    let a = read(&indexed(&[0, 1, 2], 5121, 3, 4, nodes)).unwrap();
+    let s = asset_scene::scene_from_asset(&a, "m", "m.gltf", None).unwrap();
+    assert!(s.triangles[0].normal.z > 0.99, "{}", s.triangles[0].normal);
+    // A camera asked for that the file does not have.
+    let e = asset_scene::scene_from_asset(&a, "m", "m.gltf", Some("nope")).unwrap_err();
+    assert!(e.to_string().contains("no camera \"nope\""), "{e}");
+    let Some(_) = assimp_models() else {
+        return;
+    };
+    for rel in [
+        "BoxTextured-glTF-Binary/BoxTextured.glb",
+        "2CylinderEngine-glTF-Binary/2CylinderEngine.glb",
+        "cameras/Cameras.gltf",
+    ] {
+        let path = Path::new(ASSIMP_GLTF2).join(rel);
+        let (scene, _) = asset_scene::load(&path, None).unwrap();
+        engines_agree(rel, &scene);
+    }
+}
+
+#[test]
+fn wavetrace_renders_a_glb_file_directly() {
+    let Some(_) = assimp_models() else {
+        return;
+    };
+    let dir = TempDir::new("glb");
+    let glb = Path::new(ASSIMP_GLTF2).join("BoxTextured-glTF-Binary/BoxTextured.glb");
+    std::fs::copy(&glb, dir.join("box.glb")).unwrap();
+    let out = run_ok(&dir, &["box.glb", "--spp", "1", "-o", "box.png", "--quiet"]);
+    assert!(dir.join("box.png").exists(), "{}", stderr(&out));
 }

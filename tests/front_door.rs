@@ -32,11 +32,18 @@ fn a_scene_of_another_format_is_named_not_parsed() {
     std::fs::write(dir.join("s.pbrt"), "LookAt 0 0 5 0 0 0 0 1 0\nWorldBegin\n").unwrap();
     std::fs::write(dir.join("s.xml"), "<scene version=\"3.0.0\">\n</scene>\n").unwrap();
     std::fs::write(dir.join("s.blend"), b"BLENDER-v402REND").unwrap();
+    // glTF, GLB and PLY files are assets wavetrace renders: these empty
+    // ones are refused by their loaders, saying why.
+    for (file, why) in [
+        ("m.ply", "m.ply: the asset has no triangles to render"),
+        ("s.gltf", "s.gltf: the asset has no triangles to render"),
+        ("s.glb", "s.glb: not a valid glTF 2.0 file"),
+    ] {
+        let err = run_refused(&dir, &[file]);
+        assert!(err.contains(why), "{file}: {err}");
+    }
     for (file, what) in [
         ("crate.obj", "a Wavefront OBJ mesh"),
-        ("m.ply", "a PLY mesh"),
-        ("s.gltf", "a glTF"),
-        ("s.glb", "a glTF"),
         ("s.pbrt", "a pbrt scene"),
         ("s.xml", "a Mitsuba scene"),
         ("s.blend", "a Blender"),

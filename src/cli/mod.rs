@@ -81,9 +81,17 @@ pub enum Command {
     Denoise(DenoiseArgs),
 }
 
-/// Load the scene file at `path`; a file of another format (an OBJ mesh,
-/// glTF, pbrt…) is refused with an error that says what it is.
+/// Load the scene file at `path`: a TOML scene, or an asset (glTF, GLB,
+/// PLY; its loader's warnings printed); a file of another format (an OBJ
+/// mesh, pbrt…) is refused with an error that says what it is.
 pub(crate) fn load_scene(path: &std::path::Path) -> Result<crate::scene::Scene> {
+    if crate::scene::asset_scene::is_asset(path) {
+        let (scene, warnings) = crate::scene::asset_scene::load(path, None)?;
+        for w in warnings {
+            eprintln!("warning: {w}");
+        }
+        return Ok(scene);
+    }
     if let Some(foreign) = crate::scene::format::foreign_format(path) {
         return Err(foreign.into());
     }

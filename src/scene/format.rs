@@ -24,6 +24,12 @@ pub struct Foreign {
 
 const CONVERT: &str = "export or convert it to OBJ (Blender: File > Export > Wavefront) and place it in a scene with [[mesh]] (see scenes/README.md)";
 
+/// Assets wavetrace renders directly, recognised by their extension
+/// ([`asset_scene::is_asset`](super::asset_scene::is_asset)); a file of
+/// such a format under another name is told this.
+const ASSET: &str =
+    "wavetrace renders .gltf, .glb and .ply files directly: give the file its extension";
+
 /// The formats recognised, in the order they are tested.
 pub const FOREIGN: &[Foreign] = &[
     Foreign {
@@ -46,7 +52,7 @@ pub const FOREIGN: &[Foreign] = &[
         name: "a PLY mesh",
         extensions: &["ply"],
         looks_like: |head| head.starts_with(b"ply\n") || head.starts_with(b"ply\r\n"),
-        hint: CONVERT,
+        hint: ASSET,
     },
     Foreign {
         name: "a glTF",
@@ -54,7 +60,7 @@ pub const FOREIGN: &[Foreign] = &[
         looks_like: |head| {
             head.starts_with(b"glTF") || (starts_text(head, "{") && contains(head, "\"asset\""))
         },
-        hint: CONVERT,
+        hint: ASSET,
     },
     Foreign {
         name: "a pbrt scene",

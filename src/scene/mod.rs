@@ -4,6 +4,7 @@
 //! built in ([`Scene::cornell`]) and is the default scene.
 
 pub mod asset;
+pub mod asset_scene;
 pub mod camera;
 pub mod file;
 pub mod format;
