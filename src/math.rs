@@ -216,6 +216,11 @@ impl<R: Real> V3<R> {
             self.z.mul_add(s, b.z),
         )
     }
+    /// The largest absolute value of the components (the ∞-norm).
+    #[inline(always)]
+    pub fn max_abs(self) -> R {
+        self.x.abs().max(self.y.abs()).max(self.z.abs())
+    }
     /// Each component times `s`.
     #[inline(always)]
     pub fn scale(self, s: R) -> Self {

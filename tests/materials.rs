@@ -93,10 +93,9 @@ fn render(
 const INTEGRATORS: [Integrator; 3] = [Integrator::Report, Integrator::Bsdf, Integrator::Nee];
 
 /// A closed mirror room of tint `a` emitting `E`: every sample is exactly
-/// `E · Σ a^k`, save the rare path that leaves a surface within the ray
-/// epsilon of an edge and escapes through the corner (the known limit of
-/// the epsilon offset, as in the diffuse furnace): those have less, never
-/// more. Next-event estimation takes no shadow ray at a mirror.
+/// `E · Σ a^k`, save the rare path that leaves a surface within rounding
+/// of an edge and escapes through the corner (as in the diffuse furnace):
+/// those have less, never more. Next-event estimation takes no shadow ray at a mirror.
 #[test]
 fn a_mirror_furnace_gives_the_closed_form_in_every_sample_that_stays_inside() {
     let (a, e, depth) = (0.5f64, 2.0f64, 4);
@@ -171,8 +170,8 @@ fn a_metal_furnace_loses_a_little_energy_and_the_integrators_agree() {
 /// absorbs nothing, and the radiance scaling of refraction in and out
 /// cancels, so a sample that reaches a wall within the depth is `E` (to
 /// rounding); one still inside (total internal reflection) is 0, and the
-/// rare one that slips out through an edge of the cube within the ray
-/// epsilon, unrefracted, keeps its `1/η²` — never more than `E`.
+/// rare one that slips out through an edge of the cube within rounding,
+/// unrefracted, keeps its `1/η²` — never more than `E`.
 #[test]
 fn glass_is_lossless() {
     let scene = enclosure(

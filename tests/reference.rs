@@ -275,13 +275,11 @@ fn check_furnace(a: [f32; 3], e: [f32; 3], depth: u32, seed: u64) {
         let (film, counters) = render(&scene, depth, seed, integrator);
         let n = film.sums.len();
         assert_eq!(counters.paths, n as u64);
-        // Closed: every path should bounce to the full depth. A few do not:
-        // a ray that leaves a surface within the ray epsilon (1e-4) of an
-        // edge, heading into the neighbouring face, skips that face (its
-        // hit is at t < epsilon) and leaves the cube through the gap (about
-        // 2 rays in 10^4 here). A known limit of the epsilon offset,
-        // bounded here so that a real leak (a larger epsilon, a crack in
-        // the intersection) fails.
+        // Closed: every path should bounce to the full depth. A ray that
+        // leaves a surface within rounding of an edge may start just
+        // behind the neighbouring face and leave the cube through the
+        // gap: bounded here so that a real leak (a larger offset, a crack
+        // in the intersection) fails.
         let full = counters.paths * depth as u64;
         let rays = counters.rays - counters.shadow_rays;
         assert!(

@@ -235,6 +235,10 @@ fn render(scene: &Scene, engine: Engine, seed: u64, max_depth: u32) -> Film {
 /// those of the commit before the sampler module became a directory with
 /// `sobol` in it (92df1c6, where the engines traced the report's estimator
 /// only): these hashes were taken there, with this very test. Both engines, two scenes, a short and a deep path.
+/// Since then one change moved rays on purpose: rays leave surfaces from
+/// points offset by a bound local to the hit (issue 25, not a scene-wide
+/// `10⁻⁴ × extent`), which changed the two deep `cornell-obj` films (the
+/// others' fixed-point sums came out the same) and the fingerprint.
 #[test]
 fn independent_images_are_byte_identical_to_before_sobol() {
     const BEFORE: [(&str, Engine, u64, u32, u64); 8] = [
@@ -243,9 +247,9 @@ fn independent_images_are_byte_identical_to_before_sobol() {
         ("cornell", Engine::Wavefront, 0, 3, 0xe39feb811de270ba),
         ("cornell", Engine::Wavefront, 7, 12, 0x6cdf1afe5f2923f6),
         ("cornell-obj", Engine::Reference, 0, 3, 0x3b488a04a2e639e0),
-        ("cornell-obj", Engine::Reference, 7, 12, 0x3cce4e17654d75e6),
+        ("cornell-obj", Engine::Reference, 7, 12, 0xefccf4fb35cf1e92),
         ("cornell-obj", Engine::Wavefront, 0, 3, 0xcd689bdccdac1a85),
-        ("cornell-obj", Engine::Wavefront, 7, 12, 0x493f0fce2d18f909),
+        ("cornell-obj", Engine::Wavefront, 7, 12, 0x8f3b15f22cf270de),
     ];
     let cornell = Scene::cornell();
     let obj = Scene::load(std::path::Path::new("scenes/cornell-obj.toml")).unwrap();
@@ -266,5 +270,6 @@ fn independent_images_are_byte_identical_to_before_sobol() {
     );
 }
 
-/// `estimator_fingerprint()` at 92df1c6.
-const FINGERPRINT_BEFORE: u64 = 0xa1445333b9c5e092;
+/// `estimator_fingerprint()` at 92df1c6 was `0xa1445333b9c5e092`; the
+/// local ray offset (issue 25) added its probe.
+const FINGERPRINT_BEFORE: u64 = 0x9f7d42d6e0dc45a3;

@@ -74,6 +74,10 @@ pub struct Emitter<R = f32> {
     pub axes: [V3<R>; 2],
     /// A rectangle's edge lengths (`|e1|`, `|e2|`).
     pub lengths: [R; 2],
+    /// The largest [`Scene::primitive_scale`] of its primitives: what the
+    /// rounding of a shadow ray's end on it is proportional to
+    /// ([`crate::integrator::offset`]).
+    pub scale: R,
 }
 
 /// In [`Lights::emitter_of`]: the primitive does not emit.
@@ -116,7 +120,7 @@ impl Emitter {
             self.rectangle,
             self.lengths[0],
             self.lengths[1],
-            0.0,
+            self.scale,
         ]);
         f
     }
@@ -136,6 +140,7 @@ impl Emitter {
         rectangle: 0.0,
         axes: [ZERO; 2],
         lengths: [0.0; 2],
+        scale: 0.0,
     };
 }
 
@@ -157,6 +162,7 @@ impl<R: Real> Emitter<R> {
             parallelogram: f[24],
             rectangle: f[25],
             lengths: [f[26], f[27]],
+            scale: f[28],
         }
     }
 }
@@ -301,6 +307,8 @@ pub struct LightPoint<R> {
     /// The point's density per unit solid angle at the shading point, when
     /// it was sampled by solid angle; 0 when it was sampled by area.
     pub pdf_solid_angle: R,
+    /// The emitter's [`Emitter::scale`].
+    pub scale: R,
 }
 
 impl<R: Real> LightPoint<R> {
@@ -337,6 +345,7 @@ impl<R: Real> LightPoint<R> {
             emission: e.emission,
             pdf_area: e.pdf_area,
             pdf_solid_angle: R::splat(0.0),
+            scale: e.scale,
         }
     }
 
@@ -396,6 +405,7 @@ impl Lights {
                 e2: (t.v[2] - t.v[0]).into(),
                 normal: t.normal.into(),
                 emission: emission.into(),
+                scale: scene.primitive_scale(i),
                 ..Emitter::NONE
             };
             let mut area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
@@ -411,6 +421,7 @@ impl Lights {
                     emitter.e1 = (p - x).into();
                     emitter.e2 = (q - x).into();
                     emitter.parallelogram = 1.0;
+                    emitter.scale = emitter.scale.max(scene.primitive_scale(j));
                     area = (p - x).cross(q - x).length();
                     let (l1, l2) = ((p - x).length(), (q - x).length());
                     if (p - x).dot(q - x).abs() <= 1e-6 * l1 * l2 {
@@ -443,6 +454,7 @@ impl Lights {
                 v0: sphere.center.into(),
                 emission: emission.into(),
                 radius: sphere.radius,
+                scale: scene.primitive_scale(prim as usize),
                 ..Emitter::NONE
             });
             shapes.push(([Some(prim), None], power, area));

@@ -6,6 +6,7 @@
 //! - [`reference`](mod@reference): the scalar recursive reference tracer
 //!   (the oracle);
 //! - [`wavefront`]: the SIMD wavefront engine (the default);
+//! - [`offset`]: where a ray leaves a surface (both engines);
 //! - [`surface`]: the surface at a hit, computed once per hit for every
 //!   consumer, from the shapes' columns in [`tables`];
 //! - [`aov`]: the auxiliary outputs (albedo, normal, depth, variance):
@@ -21,6 +22,7 @@ pub mod aov;
 pub mod bsdf;
 pub mod lights;
 pub mod nee;
+pub mod offset;
 pub mod reference;
 pub mod sampler;
 pub mod surface;
@@ -221,8 +223,8 @@ pub const ESTIMATOR_VERSION: u32 = 1;
 
 /// A fingerprint of how this build computes samples: [`ESTIMATOR_VERSION`]
 /// and the bits of a few probes of the shared kernels — random draws,
-/// a scattered direction, `sin_cos_2pi`, a Möller–Trumbore hit, the film's
-/// fixed-point scale. A change to any of them changes every image's bits,
+/// a scattered direction, `sin_cos_2pi`, a Möller–Trumbore hit, where a
+/// ray leaves a surface ([`offset`]), the film's fixed-point scale. A change to any of them changes every image's bits,
 /// and so changes this fingerprint (and the settings hash that checkpoints
 /// and shards are checked against).
 pub fn estimator_fingerprint() -> u64 {
@@ -254,6 +256,9 @@ pub fn estimator_fingerprint() -> u64 {
     let o = V3::new(0.1f32, 0.2, -0.3);
     let (_, t) = moller_trumbore(o, V3::new(0.0, 0.0, 1.0), &V3Tri::from(&tri), 0.0);
     put(t);
+    let p = V3::new(0.3f32, -0.2, 2.1);
+    let from = offset::spawn(p, V3::new(0.0, 0.6, 0.8), d, offset::error_bound(o, p, 2.5));
+    [from.x, from.y, from.z].into_iter().for_each(&mut put);
     h.update(&crate::film::FIXED_POINT_SCALE.to_bits().to_le_bytes());
     h.update(&ESTIMATOR_VERSION.to_le_bytes());
     h.digest()

@@ -6,6 +6,7 @@
 
 use super::bsdf::Surface;
 use super::lights::{LightPoint, Lights, power_heuristic};
+use super::offset::error_bound;
 use super::sampler::Sampler;
 use crate::math::{Real, V3};
 use crate::scene::Integrator;
@@ -160,32 +161,39 @@ impl Estimator {
 /// `throughput × radiance`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowRay<R> {
-    /// Where the ray starts: the path's vertex.
+    /// Where the ray starts: the path's vertex, moved off its surface
+    /// ([`crate::integrator::offset`]).
     pub origin: V3<R>,
     /// Unit direction towards the point on the emitter.
     pub dir: V3<R>,
-    /// The segment ends here, just short of the emitter.
+    /// The segment ends here, just short of the emitter (by the rounding
+    /// error of the point on it, [`crate::integrator::offset`]).
     pub t_max: R,
     /// `f · cos θ · L_e · w / pdf` of the light sample (w its MIS weight).
     pub radiance: V3<R>,
 }
 
-/// Next-event estimation at a non-delta vertex `p` of `surface`, whose
-/// normal facing the incoming ray is `n` and whose outgoing direction is
-/// `wo`, towards the point `light` on an emitter: the shadow ray, weighted
+/// Next-event estimation at a non-delta vertex `p` of `surface` (a hit
+/// point within `err` of the surface, [`error_bound`]), whose normal
+/// facing the incoming ray is `n` and whose outgoing direction is `wo`,
+/// towards the point `light` on an emitter: the shadow ray, weighted
 /// against the surface's own direction sampling by the power heuristic,
 /// and whether light can arrive at all (not when the emitter's back faces
 /// `p`, nor when the surface does not scatter towards it, nor when the
-/// point lies within `epsilon` of `p`). Written once for one lane and for
-/// eight, so both engines compute the same bits.
+/// segment is too short to leave both surfaces). Written once for one
+/// lane and for eight, so both engines compute the same bits.
+///
+/// The ray starts `err` from `p` along `n` (the side light must arrive
+/// from) and ends short of the point on the emitter by that point's own
+/// error bound, measured across the emitter ([`crate::integrator::offset`]).
 #[inline(always)]
 pub fn connect<R: Real>(
     light: &LightPoint<R>,
-    epsilon: R,
+    err: R,
     (p, n, wo): (V3<R>, V3<R>, V3<R>),
     surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
-    connect_shaded(light, epsilon, (p, n, n, wo), surface)
+    connect_shaded(light, err, (p, n, n, wo), surface)
 }
 
 /// [`connect`] at a smooth surface: the BSDF is evaluated with the shading
@@ -196,20 +204,23 @@ pub fn connect<R: Real>(
 #[inline(always)]
 pub fn connect_shaded<R: Real>(
     light: &LightPoint<R>,
-    epsilon: R,
+    err: R,
     (p, ng, n, wo): (V3<R>, V3<R>, V3<R>, V3<R>),
     surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
     let zero = R::splat(0.0);
-    let to = light.point - p;
+    // Light arrives only on the side of `ng`: the ray leaves towards it.
+    let origin = ng.mul_add(err, p);
+    let to = light.point - origin;
     let dist2 = to.dot(to);
     let dist = dist2.sqrt();
     let dir = to.scale(R::splat(1.0) / dist);
     // Emission is one-sided: the emitter's front must face the vertex.
     let cos_light = -light.normal.dot(dir);
-    let t_max = dist - epsilon;
+    // Short of the emitter by its point's error, across its surface.
+    let t_max = dist - error_bound(origin, light.point, light.scale) / cos_light;
     let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir);
-    let valid = zero.lt(cos_light) & epsilon.lt(t_max) & zero.lt(cos) & zero.lt(ng.dot(dir));
+    let valid = zero.lt(cos_light) & zero.lt(t_max) & zero.lt(cos) & zero.lt(ng.dot(dir));
     let pdf_light = R::select(
         R::splat(0.0).lt(light.pdf_solid_angle),
         light.pdf_solid_angle,
@@ -223,7 +234,7 @@ pub fn connect_shaded<R: Real>(
         fcos.z * light.emission.z * scale,
     );
     let ray = ShadowRay {
-        origin: p,
+        origin,
         dir,
         t_max,
         radiance: V3::select(valid, radiance, V3::new(zero, zero, zero)),

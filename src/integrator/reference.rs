@@ -18,7 +18,9 @@
 //! the BSDF-sampled direction (cosine-weighted for `bsdf` and `nee`).
 //!
 //! Emission is one-sided (towards the triangle's front); reflection is
-//! two-sided (the hemisphere is the one the incoming ray came from).
+//! two-sided (the hemisphere is the one the incoming ray came from). New
+//! rays start at the hit point moved off its surface by the bound on its
+//! rounding ([`crate::integrator::offset`]).
 //!
 //! Closest hits come from the [`Bvh`] by default; [`ReferenceTracer::with_brute_force`]
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
@@ -30,6 +32,7 @@ use crate::film::{AovSample, accumulate};
 use crate::integrator::bsdf::Surface;
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{Estimator, connect_shaded, emission_weight, survival as survival_of};
+use crate::integrator::offset::spawn;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::integrator::{Counters, TileJob};
@@ -54,7 +57,6 @@ pub struct ReferenceTracer {
     /// The shapes' columns the surface at a hit is made from.
     tables: Tables,
     accel: Accel,
-    epsilon: f32,
     estimator: Estimator,
     lights: Lights,
 }
@@ -93,7 +95,6 @@ impl ReferenceTracer {
     fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {
         Self {
             accel,
-            epsilon: scene.ray_epsilon(),
             tables: Tables::new(scene),
             materials: scene.materials.clone(),
             estimator: Estimator::report(max_depth),
@@ -115,7 +116,8 @@ impl ReferenceTracer {
         }
     }
 
-    /// The closest hit of the ray `o + t·d` beyond the scene's epsilon.
+    /// The closest hit of the ray `o + t·d` at `t > 0` (rays leave
+    /// surfaces from points moved off them: [`crate::integrator::offset`]).
     #[inline]
     pub fn closest_hit(&self, o: Vec3, d: Vec3) -> Option<Hit> {
         self.closest_hit_before(o, d, f32::INFINITY)
@@ -123,10 +125,8 @@ impl ReferenceTracer {
 
     fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         match &self.accel {
-            Accel::Bvh(b) => b.closest_hit(o, d, self.epsilon, t_max),
-            Accel::BruteForce(t, s) => {
-                closest_hit_brute_force_prims(t, s, o, d, self.epsilon, t_max)
-            }
+            Accel::Bvh(b) => b.closest_hit(o, d, 0.0, t_max),
+            Accel::BruteForce(t, s) => closest_hit_brute_force_prims(t, s, o, d, 0.0, t_max),
         }
     }
 
@@ -251,12 +251,12 @@ impl ReferenceTracer {
             let u = est.light_numbers(sampler, path);
             if let Some(light) = self.lights.sample(V3::from(p), u) {
                 let vertex = (s.p, s.n, s.ns, V3::from(-d));
-                let (valid, shadow) = connect_shaded(&light, self.epsilon, vertex, &surface);
+                let (valid, shadow) = connect_shaded(&light, s.err, vertex, &surface);
                 if valid {
                     counters.rays += 1;
                     counters.shadow_rays += 1;
-                    let dir = Vec3::from(shadow.dir);
-                    if self.closest_hit_before(p, dir, shadow.t_max).is_none() {
+                    let (from, dir) = (Vec3::from(shadow.origin), Vec3::from(shadow.dir));
+                    if self.closest_hit_before(from, dir, shadow.t_max).is_none() {
                         radiance += Vec3::from(shadow.radiance) / survival;
                     }
                 }
@@ -265,15 +265,17 @@ impl ReferenceTracer {
         let (_lobe, u) = est.bsdf_numbers(sampler, path);
         let report = est.integrator == Integrator::Report;
         let hit = (s.front, s.n, s.ns);
+        let leave = (s.p, s.ng, s.err);
         let s = surface.sample_shaded(hit, V3::from(d), u, report);
         // A delta direction has no density: light sampling could not have
         // found what it hits (MIS weight 1).
         let pdf = if s.delta { 0.0 } else { s.pdf };
         let next_beta = Vec3::from(s.weigh(V3::from(beta)));
+        let from = Vec3::from(spawn(leave.0, leave.1, s.wi, leave.2));
         let incoming = self.trace(
             sampler,
             path,
-            (p, Vec3::from(s.wi)),
+            (from, Vec3::from(s.wi)),
             depth + 1,
             (pdf, next_beta),
             counters,

@@ -9,6 +9,7 @@
 //! [`SurfaceHit::new`] does the rest, the same for every kind.
 
 use super::bsdf::{facing, shading_facing};
+use super::offset::error_bound;
 use crate::accel::triangle::hit_point;
 use crate::math::{Real, V3};
 
@@ -17,6 +18,10 @@ use crate::math::{Real, V3};
 pub struct SurfaceHit<R: Real> {
     /// The hit point `o + t·d`.
     pub p: V3<R>,
+    /// A bound on how far `p` lies from the surface ([`error_bound`]): rays
+    /// leave from `p` moved this far off it
+    /// ([`spawn`](super::offset::spawn)).
+    pub err: R,
     /// The geometric unit normal on the shape's front (outward) side.
     pub ng: V3<R>,
     /// Whether the ray arrived on the front side (emitters emit there).
@@ -37,16 +42,17 @@ pub struct SurfaceHit<R: Real> {
 
 impl<R: Real> SurfaceHit<R> {
     /// The surface where the ray `(o, d)` hits a shape at distance `t`,
-    /// from what the shape gives there: its front geometric normal `ng`
-    /// and, where any surface of the scene is smooth, its front shading
-    /// normal `shading` (`ng` itself where the shape is flat; `None`: no
-    /// shape of the scene is smooth, and `ns` is `n`).
+    /// from what the shape gives there: its front geometric normal `ng`,
+    /// its [`Scene::primitive_scale`](crate::scene::Scene::primitive_scale)
+    /// `scale`, and, where any surface of the scene is smooth, its front
+    /// shading normal `shading` (`ng` itself where the shape is flat;
+    /// `None`: no shape of the scene is smooth, and `ns` is `n`).
     #[inline(always)]
     pub fn new(
         (o, d): (V3<R>, V3<R>),
         t: R,
         (prim, material): (R::Id, R::Id),
-        ng: V3<R>,
+        (ng, scale): (V3<R>, R),
         shading: Option<V3<R>>,
     ) -> Self {
         let (front, n) = facing(ng, d);
@@ -55,8 +61,10 @@ impl<R: Real> SurfaceHit<R> {
             None => n,
         };
         let zero = R::splat(0.0);
+        let p = hit_point(o, d, t);
         Self {
-            p: hit_point(o, d, t),
+            p,
+            err: error_bound(o, p, scale),
             ng,
             front,
             n,

@@ -34,7 +34,7 @@ pub struct Tables {
     /// Per primitive, what a bounce reads of it, in one row of eight
     /// (front normal x, y, z — zero for spheres —, the diffuse BRDF
     /// `reflectance / π` of its material, R, G, B, the material's index
-    /// (its bits), and a zero): eight
+    /// (its bits), and its [`Scene::primitive_scale`]): eight
     /// rows load as eight vectors and transpose into columns
     /// ([`Tables::rows_8`]), cheaper than 48 loads lane by lane. A row is
     /// aligned to half a cache line, so it lies in one.
@@ -64,8 +64,6 @@ pub struct Tables {
     /// Smooth triangles' vertices and vertex normals, per triangle (empty
     /// when the scene has none: [`Scene::vertex_normals`]).
     pub smooth: Vec<([glam::Vec3; 3], [glam::Vec3; 3])>,
-    /// Smallest hit distance (see [`Scene::ray_epsilon`]).
-    pub epsilon: f32,
 }
 
 impl Tables {
@@ -110,7 +108,8 @@ impl Tables {
                         .map_or(glam::Vec3::ZERO, |t| t.normal);
                     let f = brdf(m);
                     let m = f32::from_bits(*m);
-                    f32x8::new([n.x, n.y, n.z, f.x, f.y, f.z, m, 0.0])
+                    let s = scene.primitive_scale(p);
+                    f32x8::new([n.x, n.y, n.z, f.x, f.y, f.z, m, s])
                 })
                 .collect(),
             big: materials.len() * size_of::<f32x8>() > BIG_TABLE,
@@ -129,7 +128,6 @@ impl Tables {
                     .map(|(t, n)| (t.v, *n))
                     .collect()
             },
-            epsilon: scene.ray_epsilon(),
         }
     }
 
@@ -154,7 +152,8 @@ impl Tables {
             self.shading_normal(prim, ng, p).unwrap_or(ng)
         });
         let ids = (prim as u32, self.material_of[prim]);
-        SurfaceHit::new((o, d), t, ids, ng, shading)
+        let scale = self.rows[prim].to_array()[7];
+        SurfaceHit::new((o, d), t, ids, (ng, scale), shading)
     }
 
     /// [`surface`](Self::surface) of eight lanes (`prims` may repeat a
@@ -166,7 +165,7 @@ impl Tables {
         (o, d): (Vec3x8, Vec3x8),
         t: f32x8,
     ) -> SurfaceHit<f32x8> {
-        let [nx, ny, nz, _, _, _, material, _] = self.rows_8(prims);
+        let [nx, ny, nz, _, _, _, material, scale] = self.rows_8(prims);
         let ng = self.sphere_normals(prims, V3::new(nx, ny, nz), (o, d), t);
         let shading = self.has_smooth().then(|| {
             let p = hit_point(o, d, t);
@@ -176,7 +175,7 @@ impl Tables {
             prims.map(|p| p as u32),
             material.to_array().map(f32::to_bits),
         );
-        SurfaceHit::new((o, d), t, ids, ng, shading)
+        SurfaceHit::new((o, d), t, ids, (ng, scale), shading)
     }
 
     /// The front (outward) unit normal of primitive `prim` where the ray

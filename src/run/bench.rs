@@ -32,14 +32,14 @@ pub const SPHERE_1M_TOML: &str = include_str!("../../scenes/sphere-1m.toml");
 /// purpose: `cargo test --release --test bench` fails and prints the table
 /// to paste here.
 pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
-    ("cornell-report", SuiteSize::Full, "445d1ea5acbb8385"),
-    ("cornell-report", SuiteSize::Quick, "b0e7e03e999e9e68"),
+    ("cornell-report", SuiteSize::Full, "31c40d25a4996a4a"),
+    ("cornell-report", SuiteSize::Quick, "30adfa4491ddb1a1"),
     ("cornell-report", SuiteSize::Tiny, "f36c7125eb61d9e7"),
-    ("cornell-default", SuiteSize::Full, "c244fdd8c59eb115"),
-    ("cornell-default", SuiteSize::Quick, "e0798ba1f6903a14"),
-    ("cornell-default", SuiteSize::Tiny, "c0f8a31104a15637"),
-    ("sphere-1m", SuiteSize::Full, "d5706c87ec31503d"),
-    ("sphere-1m", SuiteSize::Quick, "4c33202db1994b10"),
+    ("cornell-default", SuiteSize::Full, "2a5438aac1c5178d"),
+    ("cornell-default", SuiteSize::Quick, "a19fe9e377a7195f"),
+    ("cornell-default", SuiteSize::Tiny, "408b87ded6f91ee4"),
+    ("sphere-1m", SuiteSize::Full, "379cfc6e6825943c"),
+    ("sphere-1m", SuiteSize::Quick, "b5069d2f48863aed"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
 ];
 

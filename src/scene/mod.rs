@@ -202,11 +202,23 @@ impl Scene {
             .fold(1.0, f32::max)
     }
 
-    /// The smallest ray distance counted as a hit: rays leave a surface
-    /// from the hit point itself, and this keeps them from finding the
-    /// surface they start on again through rounding.
-    pub fn ray_epsilon(&self) -> f32 {
-        1e-4 * self.extent()
+    /// The scale of primitive `i` (triangles, then spheres, as hits number
+    /// them): the largest absolute coordinate of a triangle's vertices, or
+    /// of a sphere's points (`|center| + radius`, per axis). What the
+    /// rounding of a hit on it is proportional to, beside the ray's own
+    /// coordinates ([`crate::integrator::offset`]).
+    pub fn primitive_scale(&self, i: usize) -> f32 {
+        match self.triangles.get(i) {
+            Some(t) => {
+                t.v.iter()
+                    .map(|v| v.abs().max_element())
+                    .fold(0.0, f32::max)
+            }
+            None => {
+                let s = &self.spheres[i - self.triangles.len()];
+                (s.center.abs() + s.radius).max_element()
+            }
+        }
     }
 
     /// The shading normal of triangle `i` at the point `p` on it, on its

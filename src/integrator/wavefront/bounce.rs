@@ -4,6 +4,7 @@
 
 use super::Ctx;
 use super::queue::{PathQueue, load8, store_lanes, store3};
+use crate::integrator::offset::spawn;
 use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::{Integrator, Model};
@@ -24,7 +25,8 @@ pub fn bounce<S: Sampler>(
 }
 
 /// Bounce the paths in rows `rows`, all at surfaces of model `model`,
-/// eight at a time: the new origin is the hit point; the new direction and
+/// eight at a time: the new origin is the hit point moved off the surface
+/// ([`spawn`]); the new direction and
 /// the throughput's factor come from [`Surface::sample`](crate::integrator::bsdf::Surface::sample) (for diffuse
 /// surfaces, uniform directions for the report's estimator and
 /// cosine-weighted ones otherwise), with the vertex's scattering numbers
@@ -58,7 +60,6 @@ pub fn scatter<S: Sampler>(
         let beta = load3(&queue.beta);
         let t = load8(&queue.t, i);
         let hit = tables.surface_8(&tris, (o, d), t);
-        let origin = hit.p;
         let s = if tables.has_smooth() {
             surface.sample_shaded((hit.front, hit.n, hit.ns), d, u, report)
         } else {
@@ -66,6 +67,7 @@ pub fn scatter<S: Sampler>(
         };
         let beta = s.weigh(beta);
         let pdf = if model.is_delta() { f32x8::ZERO } else { s.pdf };
+        let origin = spawn(hit.p, hit.ng, s.wi, hit.err);
 
         store3(&mut queue.o, i, origin, lanes);
         store3(&mut queue.d, i, s.wi, lanes);
@@ -82,6 +84,7 @@ mod tests {
     use crate::integrator::bsdf::Surface;
     use crate::integrator::lights::Lights;
     use crate::integrator::nee::Estimator;
+    use crate::integrator::offset::error_bound;
     use crate::integrator::sampler::{Independent, PathRng};
     use crate::integrator::tables::Tables;
     use crate::scene::Scene;
@@ -136,8 +139,10 @@ mod tests {
                 let u = sampler.next_2d(&mut path);
                 let (o, d) = (col(&before.o), col(&before.d));
                 let s = Surface::diffuse(brdf).sample(normal, d, u, true);
+                let p = hit_point(o, d, before.t[i]);
+                let err = error_bound(o, p, scene.primitive_scale(tri));
                 let want = [
-                    hit_point(o, d, before.t[i]),
+                    spawn(p, normal, s.wi, err),
                     s.wi,
                     s.weigh(col(&before.beta)),
                 ];

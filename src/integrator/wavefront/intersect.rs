@@ -4,8 +4,9 @@ use super::Ctx;
 use super::queue::PathQueue;
 use crate::integrator::sampler::Sampler;
 
-/// Fill `queue.t` and `queue.hit` with each ray's closest hit
-/// (smallest `(t, triangle)`), through the hierarchy: 8 or 16 triangles at
+/// Fill `queue.t` and `queue.hit` with each ray's closest hit at `t > 0`
+/// (smallest `(t, triangle)`; rays leave surfaces from points moved off
+/// them, [`crate::integrator::offset`]), through the hierarchy: 8 or 16 triangles at
 /// a time, a batch of rays interleaved on scenes larger than the caches.
 /// The hierarchy reads the queue's columns and writes its hits in place.
 pub fn intersect<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
@@ -13,6 +14,6 @@ pub fn intersect<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
     let o = queue.o.each_ref().map(|c| &c[..n]);
     let d = queue.d.each_ref().map(|c| &c[..n]);
     let (t, hit) = (&mut queue.t[..n], &mut queue.hit[..n]);
-    let range = (ctx.tables.epsilon, f32::INFINITY);
-    ctx.bvh.closest_hits_columns(o, d, range, t, hit);
+    ctx.bvh
+        .closest_hits_columns(o, d, (0.0, f32::INFINITY), t, hit);
 }

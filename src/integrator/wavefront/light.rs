@@ -10,7 +10,6 @@ use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::Model;
 use std::ops::Range;
-use wide::f32x8;
 
 /// Sample an emitter from every path's vertex at a non-delta surface
 /// (three numbers per path; paths at delta surfaces skip theirs), model by
@@ -66,11 +65,10 @@ fn sample_lights_8<S: Sampler>(
     let (emitters, u0) = lights.pick_8(u0, lanes);
     let light = lights.point_on(&emitters, s.p, [u0, u1]);
     let surface = tables.surfaces(model, &tris);
-    let eps = f32x8::splat(tables.epsilon);
     let (valid, ray) = if tables.has_smooth() {
-        connect_shaded(&light, eps, (s.p, s.n, s.ns, -d), &surface)
+        connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), &surface)
     } else {
-        connect(&light, eps, (s.p, s.n, -d), &surface)
+        connect(&light, s.err, (s.p, s.n, -d), &surface)
     };
     // The live lanes that may carry light.
     let valid = valid.to_bitmask() as u8 & (u8::MAX >> (8 - lanes));

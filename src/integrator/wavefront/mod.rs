@@ -181,9 +181,8 @@ impl WavefrontEngine {
                 time.time(Stage::Light, || {
                     light::sample_lights(queue, &bins, &ctx, shadows)
                 });
-                let shadow_rays = time.time(Stage::Shadow, || {
-                    shadow::shadow(queue, shadows, ctx.bvh, ctx.tables.epsilon)
-                });
+                let shadow_rays =
+                    time.time(Stage::Shadow, || shadow::shadow(queue, shadows, ctx.bvh));
                 counters.rays += shadow_rays;
                 counters.shadow_rays += shadow_rays;
             }

@@ -99,21 +99,17 @@ impl ShadowQueue {
     }
 }
 
-/// Test every queued shadow ray; for each one that nothing blocks, the
+/// Test every queued shadow ray (hits at `t > 0`: rays start off their
+/// surface, [`crate::integrator::offset`]); for each one that nothing blocks, the
 /// path's radiance gains throughput × the ray's radiance (in queue order).
 /// Returns the number of rays traced.
-pub fn shadow<P>(
-    queue: &mut PathQueue<P>,
-    shadows: &mut ShadowQueue,
-    bvh: &Bvh,
-    epsilon: f32,
-) -> u64 {
+pub fn shadow<P>(queue: &mut PathQueue<P>, shadows: &mut ShadowQueue, bvh: &Bvh) -> u64 {
     let n = shadows.len();
     let s = &mut *shadows;
     s.occluded.resize(n, false);
     let (o, d) = (s.origin.each_ref(), s.dir.each_ref());
     let (o, d) = (o.map(|c| &c[..n]), d.map(|c| &c[..n]));
-    bvh.occluded_columns(o, d, epsilon, &s.t_max[..n], &mut s.occluded[..n]);
+    bvh.occluded_columns(o, d, 0.0, &s.t_max[..n], &mut s.occluded[..n]);
     let (radiance, beta) = (&mut queue.radiance, &queue.beta);
     for (k, _) in s.occluded[..n].iter().enumerate().filter(|(_, b)| !**b) {
         let i = s.row[k] as usize;
@@ -182,7 +178,6 @@ mod tests {
         let corners = scene.triangles.iter().flat_map(|t| t.v);
         let lo = corners.clone().fold(glam::Vec3::INFINITY, glam::Vec3::min);
         let hi = corners.fold(glam::Vec3::NEG_INFINITY, glam::Vec3::max);
-        let eps = 1e-4;
         let mut rng = PathRng::new(3, 1, 4);
         let mut u = || rng.next_f32();
         let rows = 4096;
@@ -214,7 +209,7 @@ mod tests {
                     },
                 );
                 total += 1;
-                if bvh.occluded(o, dir, eps, t_max) {
+                if bvh.occluded(o, dir, 0.0, t_max) {
                     blocked += 1;
                     continue;
                 }
@@ -222,7 +217,7 @@ mod tests {
                     expected[row][c] += queue.beta[c][row] * l[c];
                 }
             }
-            assert_eq!(shadow(&mut queue, &mut shadows, &bvh, eps), rows as u64);
+            assert_eq!(shadow(&mut queue, &mut shadows, &bvh), rows as u64);
             for (i, e) in expected.iter().enumerate() {
                 let got = [0, 1, 2].map(|c| queue.radiance[c][i]);
                 assert_eq!(got.map(f32::to_bits), e.map(f32::to_bits), "row {i}");
