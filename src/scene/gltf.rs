@@ -248,7 +248,7 @@ impl Reader<'_> {
         count: usize,
         size: usize,
         at: &str,
-    ) -> Result<Vec<&'s [u8]>, AssetError> {
+    ) -> Result<Elements<'s>, AssetError> {
         let bytes = self.view_bytes(view, at)?;
         let stride = view.stride().unwrap_or(size);
         if stride < size {
@@ -258,7 +258,12 @@ impl Reader<'_> {
             ));
         }
         if count == 0 {
-            return Ok(Vec::new());
+            return Ok(Elements {
+                bytes: &[],
+                stride,
+                size,
+                count,
+            });
         }
         let end = (count - 1)
             .checked_mul(stride)
@@ -275,10 +280,12 @@ impl Reader<'_> {
                     ),
                 )
             })?;
-        let bytes = &bytes[..end];
-        Ok((0..count)
-            .map(|k| &bytes[offset + k * stride..offset + k * stride + size])
-            .collect())
+        Ok(Elements {
+            bytes: &bytes[offset..end],
+            stride,
+            size,
+            count,
+        })
     }
 
     /// An accessor's elements as `f32` components (`n` of them each;
@@ -337,7 +344,7 @@ impl Reader<'_> {
         let mut out = match acc.view() {
             Some(view) => self
                 .elements(&view, acc.offset(), count, size, at)?
-                .into_iter()
+                .iter()
                 .map(&one)
                 .collect(),
             None => {
@@ -365,7 +372,7 @@ impl Reader<'_> {
                 size,
                 &format!("{at}.sparse.values"),
             )?;
-            for (i, v) in indices.into_iter().zip(values) {
+            for (i, v) in indices.iter().zip(values.iter()) {
                 let k = match isz {
                     1 => i[0] as usize,
                     2 => u16::from_le_bytes([i[0], i[1]]) as usize,
@@ -810,6 +817,22 @@ impl Reader<'_> {
             }
         }
         Ok(out)
+    }
+}
+
+/// `count` elements of `size` bytes, `stride` apart, from the start of
+/// `bytes` (which holds them all: checked when it was made).
+struct Elements<'s> {
+    bytes: &'s [u8],
+    stride: usize,
+    size: usize,
+    count: usize,
+}
+
+impl<'s> Elements<'s> {
+    fn iter(&self) -> impl Iterator<Item = &'s [u8]> + use<'s> {
+        let (bytes, stride, size) = (self.bytes, self.stride, self.size);
+        (0..self.count).map(move |k| &bytes[k * stride..k * stride + size])
     }
 }
 
