@@ -688,3 +688,91 @@ fn wavetrace_renders_a_glb_file_directly() {
     let out = run_ok(&dir, &["box.glb", "--spp", "1", "-o", "box.png", "--quiet"]);
     assert!(dir.join("box.png").exists(), "{}", stderr(&out));
 }
+
+#[test]
+fn tangents_are_generated_where_a_normal_texture_needs_them() {
+    use image::{ImageEncoder, codecs::png::PngEncoder};
+    let mut png = Vec::new();
+    PngEncoder::new(&mut png)
+        .write_image(&[128, 128, 255, 255], 1, 1, image::ExtendedColorType::Rgba8)
+        .unwrap();
+    // The unit square in z = 0, normals +z, u along +x, v along -y.
+    let mut bin = square(&[]);
+    bin.extend(f32s(&[0.0, 0.0, 1.0].repeat(4)));
+    bin.extend(f32s(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
+    bin.extend([0u8, 1, 2, 0, 2, 3, 0, 0]);
+    let png_offset = bin.len();
+    bin.extend(&png);
+    let json = gltf_json(
+        &bin,
+        &format!(
+            r#""bufferViews": [{{"buffer": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 48}},
+                               {{"buffer": 0, "byteOffset": 96, "byteLength": 32}}, {{"buffer": 0, "byteOffset": 128, "byteLength": 6}},
+                               {{"buffer": 0, "byteOffset": {png_offset}, "byteLength": {}}}],
+               "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+                             {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"}},
+                             {{"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}},
+                             {{"bufferView": 3, "componentType": 5121, "count": 6, "type": "SCALAR"}}],
+               "images": [{{"bufferView": 4, "mimeType": "image/png"}}],
+               "textures": [{{"source": 0}}],
+               "materials": [{{"normalTexture": {{"index": 0, "scale": 0.5}}}}],
+               "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}},
+                                            "indices": 3, "material": 0}}]}}],
+               {ONE_NODE}"#,
+            png.len()
+        ),
+    );
+    let a = read(&json).unwrap();
+    let m = &a.meshes[0];
+    assert_eq!(m.tangents.len(), 4);
+    for t in &m.tangents {
+        let v = Vec3::new(t[0], t[1], t[2]);
+        // MikkTSpace's tangent follows increasing u (+x); v runs along -y,
+        // so the bitangent w · (n × t) = w · (+y) points along -y: w = -1.
+        assert!((v - Vec3::X).length() < 1e-5, "{t:?}");
+        assert_eq!(t[3], -1.0, "{t:?}");
+    }
+    assert_eq!(a.materials[0].normal_texture.unwrap().scale, 0.5);
+    // Without the normal texture, no tangents are made.
+    let plain = String::from_utf8(json.clone()).unwrap().replace(
+        r#""normalTexture": {"index": 0, "scale": 0.5}"#,
+        r#""doubleSided": true"#,
+    );
+    assert!(
+        read(plain.as_bytes()).unwrap().meshes[0]
+            .tangents
+            .is_empty()
+    );
+}
+
+#[test]
+fn ply_mutations_are_refused_or_read_never_a_panic() {
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+               property float z\nproperty uchar red\nelement face 1\n\
+               property list uchar int vertex_indices\nend_header\n0 0 0 9\n1 0 0 9\n0 1 0 9\n3 0 1 2\n";
+    let mut binary = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+                       property float y\nproperty float z\nelement face 1\n\
+                       property list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    for v in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        binary.extend(f32s(&v));
+    }
+    binary.push(3);
+    for i in [0i32, 1, 2] {
+        binary.extend(i.to_le_bytes());
+    }
+    for good in [ply.as_bytes().to_vec(), binary] {
+        let read = |b: &[u8]| ply::read(std::io::Cursor::new(b.to_vec()), "m.ply");
+        assert_eq!(read(&good).unwrap().unique_triangles(), 1);
+        for k in 0..good.len() {
+            let _ = read(&good[..k]);
+            for delta in [1u8, 17, 128] {
+                let mut b = good.clone();
+                b[k] = b[k].wrapping_add(delta);
+                if let Err(e) = read(&b) {
+                    assert!(e.to_string().starts_with("m.ply"), "{e}");
+                }
+            }
+        }
+    }
+}
