@@ -38,9 +38,8 @@ use crate::integrator::tables::Tables;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
 use crate::scene::camera::RasterCamera;
-use crate::scene::{Integrator, Material, Model, Scene};
+use crate::scene::{Integrator, Material, Scene};
 use glam::Vec3;
-use std::f32::consts::PI;
 use std::sync::Arc;
 
 /// How the tracer finds closest hits.
@@ -127,20 +126,6 @@ impl ReferenceTracer {
         match &self.accel {
             Accel::Bvh(b) => b.closest_hit(o, d, 0.0, t_max),
             Accel::BruteForce(t, s) => closest_hit_brute_force_prims(t, s, o, d, 0.0, t_max),
-        }
-    }
-
-    /// The scattering of `material`, for one lane.
-    fn surface(&self, material: &Material) -> Surface<f32> {
-        Surface {
-            model: material.model,
-            tint: V3::from(match material.model {
-                Model::Diffuse => material.reflectance / PI,
-                Model::Mirror | Model::Metal => material.reflectance,
-                Model::Glass => material.transmittance,
-            }),
-            alpha: material.alpha,
-            ior: material.ior,
         }
     }
 
@@ -235,7 +220,7 @@ impl ReferenceTracer {
         }
 
         let p = Vec3::from(s.p);
-        let surface = self.surface(material);
+        let surface = Surface::of(material);
         let mut beta = beta;
         let mut survival = 1.0;
         if let Some(u) = est.roulette_number(sampler, path, depth) {

@@ -9,7 +9,7 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
 use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
-use crate::scene::{Material, Model, Scene, interpolate_normal};
+use crate::scene::{Model, Scene, interpolate_normal};
 use std::f32::consts::PI;
 use wide::f32x8;
 
@@ -83,11 +83,8 @@ impl Tables {
             (Some(a), Some(b)) => a..b + 1,
             _ => 0..0,
         };
-        let tint = |m: &Material| match m.model {
-            Model::Diffuse => m.reflectance / PI,
-            Model::Mirror | Model::Metal => m.reflectance,
-            Model::Glass => m.transmittance,
-        };
+        let surfaces: Vec<Surface<f32>> = scene.materials.iter().map(Surface::of).collect();
+        let tint = |s: &Surface<f32>| [s.tint.x, s.tint.y, s.tint.z];
         Self {
             normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
             first_sphere: scene.triangles.len(),
@@ -114,12 +111,12 @@ impl Tables {
                 .collect(),
             big: materials.len() * size_of::<f32x8>() > BIG_TABLE,
             material_of: materials,
-            tint: [0, 1, 2].map(|c| scene.materials.iter().map(|m| tint(m)[c]).collect()),
+            tint: [0, 1, 2].map(|c| surfaces.iter().map(|s| tint(s)[c]).collect()),
             albedo: (scene.materials.iter())
                 .map(|m| crate::integrator::aov::albedo(m).to_array())
                 .collect(),
-            alpha: scene.materials.iter().map(|m| m.alpha).collect(),
-            ior: scene.materials.iter().map(|m| m.ior).collect(),
+            alpha: surfaces.iter().map(|s| s.alpha).collect(),
+            ior: surfaces.iter().map(|s| s.ior).collect(),
             smooth: if scene.vertex_normals.is_empty() {
                 Vec::new()
             } else {

@@ -103,6 +103,19 @@ impl Material {
         }
     }
 
+    /// What the scene's content hash takes of the model and its own
+    /// parameters, as words of three floats. Diffuse, the first model,
+    /// hashes as nothing: hashes of scenes from before models existed stay
+    /// what they were.
+    pub fn model_words(&self) -> Vec<Vec3> {
+        match self.model {
+            Model::Diffuse => vec![],
+            Model::Mirror => vec![Vec3::new(1.0, 0.0, 0.0)],
+            Model::Glass => vec![Vec3::new(2.0, self.ior, 0.0), self.transmittance],
+            Model::Metal => vec![Vec3::new(3.0, self.alpha, 0.0)],
+        }
+    }
+
     /// Whether the material emits any light.
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0

@@ -255,17 +255,7 @@ impl Scene {
         for m in &self.materials {
             put(m.reflectance);
             put(m.emission);
-            // Diffuse, the first model, hashes as nothing: hashes of scenes
-            // from before models existed stay what they were.
-            match m.model {
-                Model::Diffuse => {}
-                Model::Mirror => put(Vec3::new(1.0, 0.0, 0.0)),
-                Model::Glass => {
-                    put(Vec3::new(2.0, m.ior, 0.0));
-                    put(m.transmittance);
-                }
-                Model::Metal => put(Vec3::new(3.0, m.alpha, 0.0)),
-            }
+            m.model_words().into_iter().for_each(&mut put);
         }
         for t in &self.triangles {
             for v in t.v {

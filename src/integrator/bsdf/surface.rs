@@ -1,10 +1,17 @@
 //! A surface's scattering by its model: the one place that dispatches on
 //! [`Model`], for both engines (one lane in the reference tracer, eight
-//! paths of one model at a time in the wavefront engine).
+//! paths of one model at a time in the wavefront engine), and the one
+//! place that turns a [`Material`] into a model's parameters
+//! ([`Surface::of`]).
+//!
+//! A new model is its routine in a file of [`super`], one variant of
+//! [`Model`] (with its name and whether it is a delta lobe), its arms here
+//! (parameters, sampling, evaluation), and its fields in the scene format.
 
 use super::{BsdfSample, diffuse, facing, glass, leaks, metal, mirror};
 use crate::math::{Real, V3};
-use crate::scene::Model;
+use crate::scene::{Material, Model};
+use std::f32::consts::PI;
 
 /// The scattering of a surface, lane by lane, for one model.
 #[derive(Clone, Copy, Debug)]
@@ -18,6 +25,27 @@ pub struct Surface<R: Real> {
     pub alpha: R,
     /// Index of refraction (glass).
     pub ior: R,
+}
+
+impl Surface<f32> {
+    /// The scattering of `material`, for one lane: each model's parameters
+    /// from the material's fields. (Every parameter is a constant of the
+    /// material today; a textured one will be looked up here, at the hit's
+    /// texture coordinates.)
+    #[inline]
+    pub fn of(material: &Material) -> Self {
+        let tint = match material.model {
+            Model::Diffuse => material.reflectance / PI,
+            Model::Mirror | Model::Metal => material.reflectance,
+            Model::Glass => material.transmittance,
+        };
+        Surface {
+            model: material.model,
+            tint: V3::from(tint),
+            alpha: material.alpha,
+            ior: material.ior,
+        }
+    }
 }
 
 impl<R: Real> Surface<R> {
