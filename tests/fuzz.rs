@@ -755,3 +755,72 @@ proptest! {
         prop_assert!(render(&scene).sums == want.sums, "{}", objects.concat());
     }
 }
+
+// --- Materials at extreme values ---
+
+/// A number at an extreme: huge, tiny, at the edge of a range, or not one.
+fn extreme() -> impl Strategy<Value = String> {
+    prop_oneof![
+        select(
+            &[
+                "1e20",
+                "1e-20",
+                "3.4e38",
+                "1e-45",
+                "0",
+                "-0.0",
+                "1",
+                "0.1",
+                "10",
+                "10.000001",
+                "0.099999",
+                "nan",
+                "inf",
+                "-1"
+            ][..]
+        )
+        .prop_map(String::from),
+        (-40i32..40).prop_map(|e| format!("1e{e}")),
+        any::<f32>().prop_map(|x| format!("{x:e}")),
+    ]
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// The Cornell box with its short block's material made glass or metal
+    /// with extreme numbers (index of refraction, roughness, colours,
+    /// emission): refused naming the material's field, or rendered by
+    /// both engines with no panic and no NaN sample.
+    #[test]
+    fn materials_at_extreme_values(
+        glass in any::<bool>(),
+        x in extreme(),
+        y in extreme(),
+    ) {
+        let material = if glass {
+            format!("model = \"glass\"\nior = {x}\ntransmittance = [{y}, 0.5, 0.5]\n")
+        } else {
+            format!("model = \"metal\"\nalpha = {x}\nreflectance = [{y}, 1, 1]\n")
+        };
+        let text = CORNELL_TOML.replace(
+            "[materials.short_block]\nreflectance = [0.75, 0.15, 0.15]\n",
+            &format!("[materials.short_block]\n{material}"),
+        );
+        prop_assert!(text != CORNELL_TOML);
+        match wavetrace::scene::file::parse(&text, "m.toml") {
+            Err(e) => prop_assert!(
+                e.to_string().contains("materials.short_block."),
+                "{e}"
+            ),
+            Ok(scene) => {
+                for engine in [wavetrace::render::Engine::Reference, wavetrace::render::Engine::Wavefront] {
+                    let mut s = wavetrace::render::RenderSettings::for_scene(&scene);
+                    (s.width, s.height, s.spp, s.threads, s.engine) = (8, 8, 2, 1, engine);
+                    let (film, _, _) = Renderer::new(&scene, &s).unwrap().render();
+                    prop_assert_eq!(film.invalid_samples, 0, "{}", material);
+                }
+            }
+        }
+    }
+}

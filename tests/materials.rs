@@ -241,7 +241,7 @@ fn material_fields_are_checked() {
     );
     refused(
         "model = \"glass\"\nior = -1.0",
-        &["materials.m.ior", "positive"],
+        &["materials.m.ior", "from 0.1 to 10"],
     );
     refused("model = \"glass\"\nior = 0.0", &["materials.m.ior"]);
     refused(

@@ -437,12 +437,16 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         if model == Model::Glass {
             if let Some(ior) = &m_ref.ior {
                 let v = *ior.get_ref();
-                if !(v.is_finite() && v > 0.0) {
+                let range = super::material::IOR_RANGE;
+                if !range.contains(&v) {
                     return Err(at(
                         ior.span(),
                         &format!("materials.{name}.ior"),
-                        "must be a positive, finite index of refraction (e.g. 1.5 for glass)"
-                            .into(),
+                        format!(
+                            "must be an index of refraction from {} to {} (e.g. 1.5 for glass), not {v}",
+                            range.start(),
+                            range.end()
+                        ),
                     ));
                 }
                 material.ior = v;

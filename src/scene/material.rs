@@ -64,6 +64,15 @@ impl Model {
 /// The index of refraction of glass when the scene gives none (crown glass).
 pub const DEFAULT_IOR: f32 = 1.5;
 
+/// The indices of refraction a scene file may give a glass material.
+/// Real media lie well inside: 1.0003 (air) to about 4 (germanium in the
+/// infrared); diamond is 2.42, and an index below 1 (a medium thinner than
+/// the outside: an air bubble in diamond is 1/2.42 ≈ 0.41) stays above
+/// 0.1. Within it `η²` and `1/η²` stay far from overflow, and the
+/// refraction code from NaN (beyond it an index of `1e20` overflowed into
+/// a NaN direction).
+pub const IOR_RANGE: std::ops::RangeInclusive<f32> = 0.1..=10.0;
+
 /// The roughness of metal when the scene gives none.
 pub const DEFAULT_ALPHA: f32 = 0.1;
 

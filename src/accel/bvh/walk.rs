@@ -264,6 +264,8 @@ fn start<R: LanesIn, Q: Query<R>>(bvh: &Bvh, r: &PackRay<R>, q: &mut Q) -> bool 
 }
 
 /// Hand the leaf `leaf` to the query, by its kind; true ends the walk.
+/// [`Child::EMPTY`] (kind 3) holds nothing: a ray that reaches it (only a
+/// ray no box test can judge would) finds nothing there.
 #[inline(always)]
 fn visit_leaf<R: LanesIn, Q: Query<R>>(
     bvh: &Bvh,
@@ -276,7 +278,7 @@ fn visit_leaf<R: LanesIn, Q: Query<R>>(
     match leaf.kind() {
         0 => q.leaf(r, &R::packs(bvh).triangles[first..first + count], in_order),
         1 => q.leaf(r, &R::packs(bvh).spheres[first..first + count], in_order),
-        _ => unreachable!("a leaf of an unknown kind"),
+        _ => false,
     }
 }
 
@@ -295,6 +297,14 @@ impl Group {
         node: 0,
         mask: 0,
     };
+}
+
+/// Whether `(o, d)` is a ray at all: a NaN or infinite coordinate (a
+/// direction scattered from hostile numbers, say) makes every box test
+/// meaningless, and such a ray misses everything.
+#[inline(always)]
+fn is_ray(o: Vec3, d: Vec3) -> bool {
+    o.is_finite() && d.is_finite()
 }
 
 /// The walk's one body: visit `cur` (a node or a leaf), then choose the
@@ -380,7 +390,7 @@ pub(crate) fn walk_one<R: LanesIn, Q: Query<R>>(
 ) -> Q::Output {
     let r = PackRay::new(o, d, t_min);
     let mut q = Q::new(t_max);
-    if front && start(bvh, &r, &mut q) {
+    if !is_ray(o, d) || front && start(bvh, &r, &mut q) {
         return q.output();
     }
     let root = bvh.root;
@@ -436,7 +446,7 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
             cur: bvh.root,
             group: Group::NONE,
         };
-        if front && start(bvh, &w.r, &mut w.q) {
+        if !is_ray(o, d) || front && start(bvh, &w.r, &mut w.q) {
             w.cur = Child::EMPTY;
         }
         w
@@ -451,7 +461,7 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
         self.stack.len = 0;
         self.cur = bvh.root;
         self.group = Group::NONE;
-        if front && start(bvh, &self.r, &mut self.q) {
+        if !is_ray(o, d) || front && start(bvh, &self.r, &mut self.q) {
             self.cur = Child::EMPTY;
         }
     }

@@ -74,6 +74,11 @@ pub fn refract<R: Real>(wo: V3<R>, n: V3<R>, cos_i: R, inv_eta: R, cos_t: R) -> 
 /// the Fresnel factors of the BSDF exactly, so both are delta samples with
 /// `cos = 1`, `pdf = 1` (see [`BsdfSample`]). A reflected `wi` is on the
 /// side of `wo`, a refracted one on the other side.
+///
+/// Scene files keep `ior` within [`IOR_RANGE`](crate::scene::material::IOR_RANGE); beyond it
+/// (a material built in code), `η²` may overflow and the Fresnel terms
+/// turn NaN: the sample is then the mirror direction, the limit of an
+/// interface of infinite contrast — never a NaN direction.
 #[inline(always)]
 pub fn sample<R: Real>(n: V3<R>, wo: V3<R>, ior: R, tint: V3<R>, u: R) -> BsdfSample<R> {
     let one = R::splat(1.0);
@@ -85,13 +90,14 @@ pub fn sample<R: Real>(n: V3<R>, wo: V3<R>, ior: R, tint: V3<R>, u: R) -> BsdfSa
     let nf = V3::select(front, n, -n);
     let cos_i = c.abs();
     let (fr, cos_t) = fresnel_dielectric(cos_i, eta);
-    let is_reflect = u.lt(fr);
     let wr = reflect(wo, nf);
     let wt = refract(wo, nf, cos_i, inv_eta, cos_t);
+    // `fr ≤ u` is `!(u < fr)` save where `fr` is NaN (then: reflect).
+    let refracts = fr.le(u) & wt.dot(wt).lt(R::splat(f32::INFINITY));
     let scale = inv_eta * inv_eta;
     BsdfSample {
-        wi: V3::select(is_reflect, wr, wt),
-        f: V3::select(is_reflect, V3::new(one, one, one), tint.scale(scale)),
+        wi: V3::select(refracts, wt, wr),
+        f: V3::select(refracts, tint.scale(scale), V3::new(one, one, one)),
         cos: one,
         pdf: one,
         delta: R::splat_mask(true),
