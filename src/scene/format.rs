@@ -147,7 +147,7 @@ pub const FOREIGN: &[Foreign] = &[
 /// A file given as a scene that is of a format wavetrace does not read.
 #[derive(Debug, thiserror::Error)]
 #[error(
-    "{file} is {} file; wavetrace reads TOML scenes (and the OBJ meshes they place); {}",
+    "{file} is {} file; wavetrace reads TOML scenes (and the OBJ meshes they place), glTF and PLY files; {}",
     format.name,
     format.hint
 )]
