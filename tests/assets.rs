@@ -776,3 +776,46 @@ fn ply_mutations_are_refused_or_read_never_a_panic() {
         }
     }
 }
+
+#[test]
+fn camera_picks_one_of_the_files_cameras() {
+    let Some(_) = assimp_models() else {
+        return;
+    };
+    // One perspective camera (its orthographic one is skipped).
+    let path = Path::new(ASSIMP_GLTF2).join("cameras/Cameras.gltf");
+    let a = load(&path).unwrap();
+    assert_eq!(a.cameras.len(), 1);
+    let cam = |which: Option<&str>| asset_scene::load(&path, which).unwrap().0.camera;
+    let first = cam(Some("0"));
+    assert_eq!(cam(None), first);
+    assert_eq!(cam(Some(a.cameras[0].name.as_str())), first);
+    // The file's camera, not the default framing.
+    let framed = asset_scene::scene_from_asset(
+        &Asset {
+            cameras: Vec::new(),
+            ..a.clone()
+        },
+        "c",
+        "c",
+        None,
+    )
+    .unwrap()
+    .camera;
+    assert_ne!(first, framed);
+    let dir = TempDir::new("camera");
+    std::fs::copy(&path, dir.join("c.gltf")).unwrap();
+    std::fs::copy(
+        Path::new(ASSIMP_GLTF2).join("cameras/simpleSquare.bin"),
+        dir.join("simpleSquare.bin"),
+    )
+    .unwrap();
+    run_ok(
+        &dir,
+        &[
+            "c.gltf", "--camera", "0", "--spp", "1", "-o", "c.png", "--quiet",
+        ],
+    );
+    let err = common::run_refused(&dir, &["c.gltf", "--camera", "9", "--spp", "1"]);
+    assert!(err.contains("no camera \"9\""), "{err}");
+}

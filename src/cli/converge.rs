@@ -101,7 +101,7 @@ struct Report<'a> {
 /// Run `wavetrace converge`.
 pub fn run(args: ConvergeArgs) -> Result<()> {
     let scene = match &args.scene {
-        Some(path) => crate::cli::load_scene(path)?,
+        Some(path) => crate::cli::load_scene(path, None)?,
         None => Scene::cornell(),
     };
     let mut base = RenderSettings::for_scene(&scene);

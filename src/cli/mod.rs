@@ -82,15 +82,25 @@ pub enum Command {
 }
 
 /// Load the scene file at `path`: a TOML scene, or an asset (glTF, GLB,
-/// PLY; its loader's warnings printed); a file of another format (an OBJ
+/// PLY; its loader's warnings printed; `camera` picks one of a glTF's
+/// cameras); a file of another format (an OBJ
 /// mesh, pbrt…) is refused with an error that says what it is.
-pub(crate) fn load_scene(path: &std::path::Path) -> Result<crate::scene::Scene> {
+pub(crate) fn load_scene(
+    path: &std::path::Path,
+    camera: Option<&str>,
+) -> Result<crate::scene::Scene> {
     if crate::scene::asset_scene::is_asset(path) {
-        let (scene, warnings) = crate::scene::asset_scene::load(path, None)?;
+        let (scene, warnings) = crate::scene::asset_scene::load(path, camera)?;
         for w in warnings {
             eprintln!("warning: {w}");
         }
         return Ok(scene);
+    }
+    if camera.is_some() {
+        return Err(crate::Error::Settings(format!(
+            "--camera chooses among a glTF asset's cameras; {} is not one",
+            path.display()
+        )));
     }
     if let Some(foreign) = crate::scene::format::foreign_format(path) {
         return Err(foreign.into());

@@ -31,8 +31,13 @@ use std::time::{Duration, Instant};
 /// docs/cli.md tells the rest.
 #[derive(Debug, Default, Args)]
 pub struct RenderArgs {
-    /// Scene file (TOML); the built-in Cornell box when omitted.
+    /// Scene file (TOML), or an asset (.gltf, .glb, .ply); the built-in
+    /// Cornell box when omitted.
     pub scene: Option<PathBuf>,
+    /// The camera of a glTF asset to render through: its name or its index
+    /// [default: the file's first, else a view that frames the asset].
+    #[arg(long, value_name = "NAME|INDEX", help_heading = "Output")]
+    pub camera: Option<String>,
 
     /// The image: .png (8-bit sRGB), .exr or .pfm (linear float), or .wtacc
     /// [default: SCENE.png].
@@ -238,7 +243,12 @@ struct Job {
 
 fn plan(args: RenderArgs) -> Result<Job> {
     let scene = match &args.scene {
-        Some(path) => crate::cli::load_scene(path)?,
+        Some(path) => crate::cli::load_scene(path, args.camera.as_deref())?,
+        None if args.camera.is_some() => {
+            return Err(Error::Settings(
+                "--camera chooses among a glTF asset's cameras: give the asset".into(),
+            ));
+        }
         None => Scene::cornell(),
     };
     let profile = match &args.profile {
