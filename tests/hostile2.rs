@@ -130,3 +130,46 @@ fn a_nan_ray_misses_in_every_query() {
         }
     }
 }
+
+// --- 7. Flags bounded ---
+
+/// `bench --repeats 18446744073709551615` ran forever (its progress total
+/// wrapped): a count outside 1..=1000 is refused as a malformed command
+/// line, at once.
+#[test]
+fn bench_repeats_is_bounded() {
+    let dir = TempDir::new("repeats");
+    for n in ["18446744073709551615", "0", "1001", "x"] {
+        let o = run_with_limit(&dir, &["bench", "--tiny", "--repeats", n], PATIENCE);
+        assert_eq!(o.status.code(), Some(2), "{n}: {}", text(&o));
+        assert!(stderr(&o).contains("from 1 to 1000"), "{n}: {}", text(&o));
+    }
+}
+
+/// `converge --prefix /abs/path` wrote its files there, outside
+/// `--out-dir`: the prefix must be a plain name; nothing is written.
+#[test]
+fn converge_prefix_is_a_plain_name() {
+    let dir = TempDir::new("prefix");
+    let away = dir.join("away");
+    std::fs::create_dir(&away).unwrap();
+    let abs = away.join("p").display().to_string();
+    for prefix in [abs.as_str(), "../p", "a/b", "", ".", ".."] {
+        let o = run(
+            &dir,
+            &[
+                "converge",
+                "--out-dir",
+                "out",
+                "--prefix",
+                prefix,
+                "--spp",
+                "2",
+            ],
+        );
+        assert_eq!(o.status.code(), Some(2), "{prefix:?}: {}", text(&o));
+        assert!(stderr(&o).contains("plain file name"), "{}", text(&o));
+    }
+    assert_eq!(std::fs::read_dir(&away).unwrap().count(), 0);
+    assert!(!dir.join("out").exists());
+}

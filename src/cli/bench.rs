@@ -28,8 +28,8 @@ pub struct BenchArgs {
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub threads: Option<Vec<usize>>,
     /// Timed renders per workload and thread count (the median is
-    /// reported).
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    /// reported), 1 to 1000.
+    #[arg(long, default_value_t = 3, value_name = "N", value_parser = repeats)]
     pub repeats: usize,
     /// Write the machine, the build and every figure as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -429,4 +429,19 @@ pub fn compare_table(files: &[PathBuf], reports: &[BenchReport]) -> String {
         s += "warning: the files ran different suites or sizes: their scores are not comparable\n";
     }
     s
+}
+
+/// The most timed renders `--repeats` may ask for: a thousand medians'
+/// worth is already hours of rendering, and the count stays far from any
+/// overflow of the progress total.
+pub const MAX_REPEATS: usize = 1000;
+
+/// `--repeats`: a count from 1 to [`MAX_REPEATS`].
+fn repeats(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if (1..=MAX_REPEATS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "must be a count from 1 to {MAX_REPEATS}, not {s:?}"
+        )),
+    }
 }

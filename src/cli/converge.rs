@@ -67,8 +67,9 @@ pub struct ConvergeArgs {
     /// Folder for the files written (`.`: the current folder).
     #[arg(long, value_name = "DIR", default_value = ".")]
     pub out_dir: PathBuf,
-    /// Start of the written files' names.
-    #[arg(long, default_value = "converge")]
+    /// Start of the written files' names (a plain name: the files go in
+    /// `--out-dir`).
+    #[arg(long, default_value = "converge", value_parser = plain_name)]
     pub prefix: String,
     /// Magnification of the crops in the strip [default: the smallest
     /// that makes them at least 128 pixels wide].
@@ -324,4 +325,18 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
         .collect();
     println!("written: {}", written.join(", "));
     Ok(())
+}
+
+/// `--prefix`: a plain file name — not empty, no slash or backslash, not `.` or
+/// `..`, no NUL — so that every file lands in `--out-dir` (an absolute
+/// prefix wrote beside it, anywhere).
+fn plain_name(s: &str) -> Result<String, String> {
+    let plain = !s.is_empty() && s != "." && s != ".." && !s.contains(['/', '\\', '\0']);
+    if plain {
+        Ok(s.to_string())
+    } else {
+        Err(format!(
+            "must be a plain file name (the files go in --out-dir), not {s:?}"
+        ))
+    }
 }
