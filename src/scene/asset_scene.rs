@@ -4,9 +4,8 @@
 //! none.
 //!
 //! **Interim materials.** Until the engines evaluate textures and glTF's
-//! metallic-roughness model ([`bsdf::metallic_roughness`]
-//! (crate::integrator::bsdf::metallic_roughness) exists, the engines'
-//! material seam does not yet reach it), each [`PbrMaterial`] is rendered
+//! metallic-roughness model (`integrator::bsdf::metallic_roughness`
+//! exists, the engines' material seam does not yet reach it), each [`PbrMaterial`] is rendered
 //! with the nearest existing model: `metallic ≥ ½` as [`Model::Metal`] of
 //! reflectance the base colour and α = roughness², else
 //! [`Model::Diffuse`] of reflectance the base colour;
