@@ -411,6 +411,36 @@ pub struct Image {
     pub rgb: Vec<[f32; 3]>,
 }
 
+impl Image {
+    /// The first pixel, in reading order, that is not radiance: a channel
+    /// NaN, infinite or negative. Its column, row and value.
+    pub fn first_non_radiance(&self) -> Option<(u32, u32, [f32; 3])> {
+        let i = self
+            .rgb
+            .iter()
+            .position(|p| p.iter().any(|c| !(c.is_finite() && *c >= 0.0)))?;
+        let width = self.width.max(1) as usize;
+        Some(((i % width) as u32, (i / width) as u32, self.rgb[i]))
+    }
+}
+
+/// Read an image that must hold radiance — finite, non-negative pixels —
+/// such as a reference to measure errors against or an image to denoise;
+/// `role` names it in the error ("the reference"). A NaN, infinite or
+/// negative pixel is refused, naming the first: it would turn every error
+/// figure into NaN, or pass through the denoiser into its neighbours.
+pub fn read_radiance(path: &Path, role: &str) -> Result<Image> {
+    let image = read_image(path)?;
+    match image.first_non_radiance() {
+        None => Ok(image),
+        Some((x, y, [r, g, b])) => Err(Error::Settings(format!(
+            "{}: pixel ({x}, {y}) of {role} is ({r}, {g}, {b}); {role} must be \
+             finite and non-negative (radiance) in every pixel",
+            path.display()
+        ))),
+    }
+}
+
 /// Read a linear float image: a PFM (colour, either byte order) or an
 /// OpenEXR file with R, G and B channels (its first layer). The size is
 /// checked against the data before anything of that size is allocated.

@@ -173,3 +173,76 @@ fn converge_prefix_is_a_plain_name() {
     assert_eq!(std::fs::read_dir(&away).unwrap().count(), 0);
     assert!(!dir.join("out").exists());
 }
+
+// --- 5, 6. References and images to denoise hold radiance ---
+
+/// `--reference nan.pfm` printed relMSE NaN and wrote `null` into the
+/// stats, exit 0; `denoise` passed NaN, infinite and negative pixels to
+/// OIDN. Both now refuse the file before any work, naming its first bad
+/// pixel, for render, converge and denoise alike.
+#[test]
+fn references_and_images_to_denoise_must_be_radiance() {
+    let dir = TempDir::new("radiance");
+    let (w, h) = (4u32, 3u32);
+    let cases = [
+        ("nan.pfm", f32::NAN, "NaN"),
+        ("inf.exr", f32::INFINITY, "inf"),
+        ("neg.pfm", -0.5, "-0.5"),
+    ];
+    for (name, bad, shown) in cases {
+        let mut rgb = vec![[0.25f32; 3]; (w * h) as usize];
+        rgb[(2 * w + 1) as usize][1] = bad; // pixel (1, 2), green
+        wavetrace::output::write_image(&dir.join(name), w, h, &rgb).unwrap();
+        let size = ["--width", "4", "--height", "3", "--spp", "1"];
+        let runs: [Vec<&str>; 3] = [
+            [
+                &["--reference", name, "--out", "o.png", "--stats", "s.json"][..],
+                &size[..],
+            ]
+            .concat(),
+            [
+                &["converge", "--reference", name, "--out-dir", "c"][..],
+                &size[..],
+            ]
+            .concat(),
+            vec!["denoise", name, "--out", "d.exr"],
+        ];
+        for args in runs {
+            let e = run_refused(&dir, &args);
+            let role = if args[0] == "denoise" {
+                "of the image to denoise"
+            } else {
+                "of the reference"
+            };
+            assert!(
+                e.contains(name)
+                    && e.contains(&format!("pixel (1, 2) {role}"))
+                    && e.contains(shown)
+                    && e.contains("finite and non-negative"),
+                "{args:?}: {e}"
+            );
+            assert!(!e.contains("panicked"), "{e}");
+        }
+        for out in ["o.png", "s.json", "c", "d.exr"] {
+            assert!(!dir.join(out).exists(), "{name}: {out} was written");
+        }
+    }
+    // A clean reference of the same size is accepted.
+    let clean = vec![[0.25f32; 3]; (w * h) as usize];
+    wavetrace::output::write_image(&dir.join("ok.pfm"), w, h, &clean).unwrap();
+    run_ok(
+        &dir,
+        &[
+            "--reference",
+            "ok.pfm",
+            "--width",
+            "4",
+            "--height",
+            "3",
+            "--spp",
+            "1",
+            "--out",
+            "o.png",
+        ],
+    );
+}

@@ -3,7 +3,7 @@
 
 use crate::cli::render::named;
 use crate::error::{Error, Result};
-use crate::output::{read_image, write_image};
+use crate::output::{read_radiance, write_image};
 use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, RenderSettings};
 use crate::run::converge::{
     Crop, Curve, DEFAULT_JND, Setting, reference_settings, render_reference, study, to_csv,
@@ -147,6 +147,24 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
             }
         }
     }
+    // The reference, read and checked before any work or file.
+    let read = match &args.reference {
+        Some(path) => {
+            let image = read_radiance(path, "the reference")?;
+            if (image.width, image.height) != (base.width, base.height) {
+                return Err(Error::Settings(format!(
+                    "{}: the reference is {}x{}, the study {}x{} (set --width and --height)",
+                    path.display(),
+                    image.width,
+                    image.height,
+                    base.width,
+                    base.height
+                )));
+            }
+            Some((path.clone(), image.rgb))
+        }
+        None => None,
+    };
     std::fs::create_dir_all(&args.out_dir)
         .map_err(|e| Error::Settings(format!("{}: cannot create: {e}", args.out_dir.display())))?;
     let file = |suffix: &str| args.out_dir.join(format!("{}{suffix}", args.prefix));
@@ -162,25 +180,6 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
     for o in outputs {
         crate::fs::check_writable(&file(o))?;
     }
-
-    // The reference, read and checked before any work.
-    let read = match &args.reference {
-        Some(path) => {
-            let image = read_image(path)?;
-            if (image.width, image.height) != (base.width, base.height) {
-                return Err(Error::Settings(format!(
-                    "{}: the reference is {}x{}, the study {}x{} (set --width and --height)",
-                    path.display(),
-                    image.width,
-                    image.height,
-                    base.width,
-                    base.height
-                )));
-            }
-            Some((path.clone(), image.rgb))
-        }
-        None => None,
-    };
 
     let show = !args.quiet && std::io::stderr().is_terminal();
     let bar = if show {

@@ -4,7 +4,8 @@ use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::fs::check_writable;
 use crate::output::{
-    ImageFormat, aov_layer, check_output_format, read_exr_layer, read_image, write_image_with_aovs,
+    ImageFormat, aov_layer, check_output_format, read_exr_layer, read_radiance,
+    write_image_with_aovs,
 };
 use crate::scene::Aov;
 use clap::Args;
@@ -58,8 +59,8 @@ pub fn run(args: DenoiseArgs) -> Result<()> {
         )));
     }
     check_writable(&args.out)?;
+    let image = read_radiance(&args.input, "the image to denoise")?;
     let mut denoiser = Denoiser::new()?;
-    let image = read_image(&args.input)?;
     let layers = aov_layers(&args.input)?;
     let layer = |aov| layers.iter().find(|(a, _)| *a == aov).map(|(_, p)| &p[..]);
     let aux = layer(Aov::Albedo)

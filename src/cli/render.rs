@@ -12,7 +12,7 @@ use crate::fs::{check_writable, same_file, write_atomic};
 use crate::metrics::ImageErrors;
 use crate::output::view::ViewTransform;
 use crate::output::{
-    aov_path, check_output_format, check_partial_path, read_image, write_image_with_aovs,
+    aov_path, check_output_format, check_partial_path, read_radiance, write_image_with_aovs,
     write_output_viewed,
 };
 use crate::render::{Engine, RenderSettings, Renderer};
@@ -450,7 +450,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
 
     let reference = match &args.reference {
         Some(path) => {
-            let image = read_image(path)?;
+            let image = read_radiance(path, "the reference")?;
             if (image.width, image.height) != (settings.width, settings.height) {
                 return Err(Error::Settings(format!(
                     "{}: the reference is {}x{}, the render {}x{}",
