@@ -523,6 +523,25 @@ fn read_pfm(bytes: &[u8]) -> std::result::Result<Image, String> {
     })
 }
 
+/// The most an EXR compression can shrink pixel data (generously): a file
+/// smaller than its declared pixel data over this cannot hold the image its
+/// header declares, and is refused before that much memory is allocated.
+fn max_exr_ratio(compression: exr::compression::Compression) -> u64 {
+    use exr::compression::Compression::*;
+    match compression {
+        Uncompressed => 1,
+        // A run of up to 128 equal bytes in 2.
+        RLE => 64,
+        // A 4×4 block of halves (32 bytes) in 14, or in 3 where it is flat.
+        B44 => 3,
+        B44A => 11,
+        // Deflate's limit is 1032:1; PXR24 first packs 32-bit floats into 24 bits.
+        ZIP1 | ZIP16 | PXR24 => 2 * 1032,
+        // Huffman coders with run codes (PIZ), lossy DCT (DWA), wavelets.
+        _ => 1 << 16,
+    }
+}
+
 fn read_exr(path: &Path) -> std::result::Result<Image, String> {
     use exr::prelude::{ReadChannels, ReadLayers, RgbChannels, Vec2, read};
     // The header's size is checked before pixels of that size are
@@ -539,6 +558,23 @@ fn read_exr(path: &Path) -> std::result::Result<Image, String> {
             return Err(format!(
                 "the EXR image is {}x{} pixels: too large to load in this system's memory",
                 h.layer_size.0, h.layer_size.1
+            ));
+        }
+    }
+    let file_bytes = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read the EXR image: {e}"))?
+        .len();
+    for h in &meta.headers {
+        let pixel_bytes = (h.layer_size.0 as u64)
+            .saturating_mul(h.layer_size.1 as u64)
+            .saturating_mul(h.channels.bytes_per_pixel as u64);
+        let ratio = max_exr_ratio(h.compression);
+        if file_bytes < pixel_bytes / ratio {
+            return Err(format!(
+                "the EXR header declares {}x{} pixels ({pixel_bytes} bytes of pixel data), \
+                 more than the file's {file_bytes} bytes can hold with {} compression \
+                 (at most {ratio}:1): the file is forged or truncated",
+                h.layer_size.0, h.layer_size.1, h.compression
             ));
         }
     }

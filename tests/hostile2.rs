@@ -246,3 +246,61 @@ fn references_and_images_to_denoise_must_be_radiance() {
         ],
     );
 }
+
+// --- 4. An EXR header that declares more than its file can hold ---
+
+/// Set an EXR's `name` box (dataWindow, displayWindow) to `side`² pixels.
+fn forge_exr_box(bytes: &mut [u8], name: &str, side: i32) {
+    let key = format!("{name}\0box2i\0");
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key.as_bytes())
+        .unwrap_or_else(|| panic!("{name} in the header"))
+        + key.len()
+        + 4;
+    bytes[at..at + 16]
+        .copy_from_slice(&[0i32, 0, side - 1, side - 1].map(i32::to_le_bytes).concat());
+}
+
+/// A small EXR whose header declared 30000×30000 pixels made `denoise`,
+/// `--reference` and `converge --reference` reserve 10.8 GB: the pixel data
+/// the header declares is now checked against what the file's bytes can
+/// hold (at the compression's largest ratio) before anything is allocated.
+#[test]
+fn an_exr_header_larger_than_its_file_is_refused() {
+    let dir = TempDir::new("exrsize");
+    let rgb = vec![[0.5f32; 3]; 64];
+    wavetrace::output::write_image(&dir.join("small.exr"), 8, 8, &rgb).unwrap();
+    let mut bytes = std::fs::read(dir.join("small.exr")).unwrap();
+    for name in ["dataWindow", "displayWindow"] {
+        forge_exr_box(&mut bytes, name, 30000);
+    }
+    std::fs::write(dir.join("forged.exr"), &bytes).unwrap();
+    let size = ["--width", "8", "--height", "8", "--spp", "1"];
+    let runs: [Vec<&str>; 3] = [
+        [
+            &["--reference", "forged.exr", "--out", "o.png"][..],
+            &size[..],
+        ]
+        .concat(),
+        [
+            &["converge", "--reference", "forged.exr", "--out-dir", "c"][..],
+            &size[..],
+        ]
+        .concat(),
+        vec!["denoise", "forged.exr", "--out", "d.exr"],
+    ];
+    for args in runs {
+        let e = run_refused(&dir, &args);
+        assert!(
+            e.contains("forged.exr") && e.contains("30000x30000") && e.contains("can hold"),
+            "{args:?}: {e}"
+        );
+    }
+    for out in ["o.png", "c", "d.exr"] {
+        assert!(!dir.join(out).exists(), "{out} was written");
+    }
+    // The file as written reads back.
+    let back = wavetrace::output::read_image(&dir.join("small.exr")).unwrap();
+    assert_eq!(back.rgb, rgb);
+}
