@@ -304,3 +304,62 @@ fn an_exr_header_larger_than_its_file_is_refused() {
     let back = wavetrace::output::read_image(&dir.join("small.exr")).unwrap();
     assert_eq!(back.rgb, rgb);
 }
+
+// --- 8. OBJ regressions of the first round ---
+
+/// Polylines (`l a b c …`) and points made a real OBJ refused ("the faces
+/// do not match the file's face lines": tobj reads a polyline of three
+/// vertices or more as a face): they are skipped, the faces kept.
+#[test]
+fn obj_polylines_and_points_are_skipped() {
+    let dir = TempDir::new("polyline");
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nl 1 2 3 4\np 1 2\nf 1 2 3\n  l 2 3 4\nf 2 4 3\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let mesh = wavetrace::scene::obj::load(&dir.join("m.obj"), false).unwrap();
+    assert_eq!(mesh.triangles.len(), 2, "the two faces, no polyline");
+}
+
+/// A real model with a `vn 0 0 0` (common in exports) was refused where it
+/// used to render: the corners that use it take their face's flat normal,
+/// the others keep theirs.
+#[test]
+fn obj_zero_vertex_normals_fall_back_to_the_flat_normal() {
+    let dir = TempDir::new("vn0");
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nvn 0.6 0 0.8\nf 1//1 2//2 3//1\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let mesh = wavetrace::scene::obj::load(&dir.join("m.obj"), false).unwrap();
+    let flat = Vec3::Z; // (1,0,0) × (0,1,0)
+    assert_eq!(
+        mesh.normals,
+        vec![Some([flat, Vec3::new(0.6, 0.0, 0.8), flat])]
+    );
+}
+
+/// UTF-16 and binary-garbage OBJ files loaded as a mesh of no triangles,
+/// without a word: a mesh that yields no face is refused, naming the file.
+#[test]
+fn an_obj_with_no_face_is_refused() {
+    let dir = TempDir::new("noface");
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let utf16: Vec<u8> = [0xFF, 0xFE]
+        .into_iter()
+        .chain(text.encode_utf16().flat_map(u16::to_le_bytes))
+        .collect();
+    let garbage: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    for (name, bytes) in [
+        ("utf16.obj", utf16),
+        ("garbage.obj", garbage),
+        ("lines.obj", b"v 0 0 0\nv 1 0 0\nl 1 2\n".to_vec()),
+    ] {
+        std::fs::write(dir.join(name), &bytes).unwrap();
+        match wavetrace::scene::obj::load(&dir.join(name), false) {
+            Err(e) => assert!(
+                e.to_string().contains(name) && !e.to_string().is_empty(),
+                "{name}: {e}"
+            ),
+            Ok(m) => panic!("{name}: loaded {} triangles", m.triangles.len()),
+        }
+    }
+}

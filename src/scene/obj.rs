@@ -65,7 +65,8 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
     };
     let bytes = std::fs::read(path).map_err(|e| err(0, format!("cannot read the mesh: {e}")))?;
     // Lossy decoding keeps every newline, so line numbers stay the file's.
-    let bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
+    let mut bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
+    blank_lines_and_points(&mut bytes);
     let faces = precheck_obj(&bytes).map_err(|(line, m)| err(line, m))?;
 
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -164,17 +165,45 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
                 let p1 = pos(face[k]).ok_or_else(bad)?;
                 let p2 = pos(face[k + 1]).ok_or_else(bad)?;
                 mesh.triangles.push([p0, p1, p2]);
+                let flat = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+                let corner = |i: usize| match normals[i] {
+                    Vec3::ZERO => flat,
+                    n => n,
+                };
                 mesh.normals
-                    .push((!normals.is_empty()).then(|| [normals[0], normals[k], normals[k + 1]]));
+                    .push((!normals.is_empty()).then(|| [corner(0), corner(k), corner(k + 1)]));
                 mesh.material.push(mat);
             }
         }
     }
+    if mesh.triangles.is_empty() {
+        return Err(err(
+            0,
+            "the mesh has no face of three corners or more (`f` lines): nothing to render \
+             (an OBJ file is text in UTF-8 or ASCII; UTF-16 or binary files read as no faces)"
+                .into(),
+        ));
+    }
     Ok(mesh)
 }
 
+/// Blank the polylines (`l`) and points (`p`) of an OBJ file, keeping its
+/// newlines (and so its line numbers): they have no area, and `tobj`
+/// reads a polyline of three vertices or more as a face.
+fn blank_lines_and_points(bytes: &mut [u8]) {
+    for line in bytes.split_mut(|&b| b == b'\n') {
+        let start = line.iter().take_while(|b| b.is_ascii_whitespace()).count();
+        let rest = &line[start..];
+        let is =
+            |k: u8| rest.first() == Some(&k) && rest.get(1).is_none_or(u8::is_ascii_whitespace);
+        if is(b'l') || is(b'p') {
+            line.fill(b' ');
+        }
+    }
+}
+
 /// Check the lines `tobj` would accept without a word: vertices and
-/// vertex normals with non-finite coordinates (or normals of length zero),
+/// vertex normals with non-finite coordinates,
 /// face indices past the vertices defined so far (or 0, or negative past
 /// the first), normal indices of faces when the file has no `vn` above
 /// them, and faces that give normals to some corners and not others.
@@ -220,12 +249,11 @@ fn precheck_obj(bytes: &[u8]) -> Result<Vec<Vec<Vec3>>, (usize, String)> {
                     _ => return Err((line_no, "a vertex normal needs three numbers".into())),
                 };
                 let u = n.normalize_or_zero();
-                if !n.is_finite() || u == Vec3::ZERO || !u.is_finite() {
-                    return Err((
-                        line_no,
-                        format!("vertex normal {n} is not finite and non-zero"),
-                    ));
+                if !n.is_finite() || !u.is_finite() {
+                    return Err((line_no, format!("vertex normal {n} is not finite")));
                 }
+                // `vn 0 0 0` (common in exports) is kept as zero: the
+                // corners that use it take their face's flat normal.
                 normals.push(u);
                 vn += 1;
             }
