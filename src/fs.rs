@@ -151,9 +151,10 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// The memory of this system in bytes, where it can be told: the smaller
-/// of the physical memory (`MemTotal` of `/proc/meminfo`) and the control
-/// group's limit (`memory.max`, or `memory.limit_in_bytes` of cgroup v1).
+/// The memory this process can have in bytes, where it can be told: the
+/// smallest of the physical memory (`MemTotal` of `/proc/meminfo`), the
+/// control group's limit (`memory.max`, or `memory.limit_in_bytes` of
+/// cgroup v1) and the process's address-space limit (`ulimit -v`).
 /// `None` elsewhere.
 pub fn system_memory() -> Option<u64> {
     let read = |p: &str| std::fs::read_to_string(p).ok();
@@ -169,8 +170,21 @@ pub fn system_memory() -> Option<u64> {
     .iter()
     .filter_map(|p| read(p)?.trim().parse::<u64>().ok())
     .min();
-    match (total, cgroup) {
-        (Some(t), Some(c)) => Some(t.min(c)),
-        (t, c) => t.or(c),
-    }
+    [total, cgroup, address_space_limit()]
+        .into_iter()
+        .flatten()
+        .min()
+}
+
+/// This process's address-space limit (`RLIMIT_AS`, `ulimit -v`): its soft
+/// value from `/proc/self/limits`, or `None` where it is unlimited or
+/// cannot be read. Allocations past it fail however much memory is free.
+fn address_space_limit() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/limits").ok()?;
+    let line = text.lines().find(|l| l.starts_with("Max address space"))?;
+    line["Max address space".len()..]
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }

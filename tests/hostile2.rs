@@ -7,6 +7,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
+use std::process::Command;
 use wavetrace::accel::bvh::{Bvh, BvhOptions};
 use wavetrace::accel::simd::SimdWidth;
 use wavetrace::accel::sphere::Sphere;
@@ -362,4 +363,29 @@ fn an_obj_with_no_face_is_refused() {
             Ok(m) => panic!("{name}: loaded {} triangles", m.triangles.len()),
         }
     }
+}
+
+// --- 7. The address-space limit in the memory estimate ---
+
+/// Renders of 7000² to 12000² under `ulimit -v 4G` aborted on allocation:
+/// the estimate now includes the process's address-space limit, so they are
+/// refused before any work (and the same render without the limit is not).
+#[test]
+fn the_address_space_limit_bounds_the_memory_estimate() {
+    let dir = TempDir::new("rlimit");
+    let args = [
+        "--width", "8000", "--height", "8000", "--spp", "1", "--check",
+    ];
+    let mut limited = Command::new("sh");
+    limited
+        .current_dir(&dir)
+        .arg("-c")
+        .arg("ulimit -v 4000000 && exec \"$0\" \"$@\"")
+        .arg(BIN)
+        .args(args);
+    let o = limited.output().unwrap();
+    assert!(!o.status.success(), "{}", text(&o));
+    let e = stderr(&o);
+    assert!(e.contains("memory") && !e.contains("panicked"), "{e}");
+    run_ok(&dir, &args);
 }
