@@ -6,7 +6,8 @@
 //! and, for smooth triangles, its shading normal at the point:
 //! [`Tables::surface`](super::tables::Tables::surface) for one lane,
 //! [`Tables::surface_8`](super::tables::Tables::surface_8) for eight);
-//! [`SurfaceHit::new`] does the rest, the same for every kind.
+//! [`SurfaceHit::new`] does the rest, the same for every kind; the
+//! texture coordinates come from the shape too, where the scene has them.
 
 use super::bsdf::{facing, shading_facing};
 use super::offset::error_bound;
@@ -32,8 +33,12 @@ pub struct SurfaceHit<R: Real> {
     /// ([`shading_facing`]): a smooth triangle's interpolated vertex
     /// normals; `n` itself, bit for bit, on flat surfaces.
     pub ns: V3<R>,
-    /// Texture coordinates at the hit (zero: no shape has them yet).
-    pub uv: [R; 2],
+    /// Texture coordinates at the hit, sets 0 and 1 (glTF's `TEXCOORD_0`
+    /// and `TEXCOORD_1`): a triangle's vertex coordinates interpolated at
+    /// the hit ([`Scene::texcoords`](crate::scene::Scene::texcoords));
+    /// zero on spheres, on triangles without any, and in scenes without
+    /// any.
+    pub uv: [[R; 2]; 2],
     /// The primitive hit, numbered as the hierarchy numbers hits.
     pub prim: R::Id,
     /// The primitive's material.
@@ -69,7 +74,7 @@ impl<R: Real> SurfaceHit<R> {
             front,
             n,
             ns,
-            uv: [zero, zero],
+            uv: [[zero, zero], [zero, zero]],
             prim,
             material,
         }

@@ -9,7 +9,7 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
 use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
-use crate::scene::{Model, Scene, interpolate_normal};
+use crate::scene::{Model, Scene, TriangleUv, barycentric, interpolate_normal, interpolate_uv};
 use std::f32::consts::PI;
 use wide::f32x8;
 
@@ -64,6 +64,10 @@ pub struct Tables {
     /// Smooth triangles' vertices and vertex normals, per triangle (empty
     /// when the scene has none: [`Scene::vertex_normals`]).
     pub smooth: Vec<([glam::Vec3; 3], [glam::Vec3; 3])>,
+    /// Triangles' vertices and vertex texture coordinates (sets 0 and 1),
+    /// per triangle (empty when the scene has none:
+    /// [`Scene::texturing`]).
+    pub uv: Vec<([glam::Vec3; 3], TriangleUv)>,
 }
 
 impl Tables {
@@ -125,6 +129,10 @@ impl Tables {
                     .map(|(t, n)| (t.v, *n))
                     .collect()
             },
+            uv: (scene.triangles.iter())
+                .zip(&scene.texturing.uv)
+                .map(|(t, uv)| (t.v, *uv))
+                .collect(),
         }
     }
 
@@ -150,7 +158,11 @@ impl Tables {
         });
         let ids = (prim as u32, self.material_of[prim]);
         let scale = self.rows[prim].to_array()[7];
-        SurfaceHit::new((o, d), t, ids, (ng, scale), shading)
+        let mut s = SurfaceHit::new((o, d), t, ids, (ng, scale), shading);
+        if self.has_uv() {
+            s.uv = self.texcoords(prim, s.p);
+        }
+        s
     }
 
     /// [`surface`](Self::surface) of eight lanes (`prims` may repeat a
@@ -172,7 +184,34 @@ impl Tables {
             prims.map(|p| p as u32),
             material.to_array().map(f32::to_bits),
         );
-        SurfaceHit::new((o, d), t, ids, (ng, scale), shading)
+        let mut s = SurfaceHit::new((o, d), t, ids, (ng, scale), shading);
+        if self.has_uv() {
+            let p = lanes3(s.p);
+            let uv: [[[f32; 2]; 2]; 8] = std::array::from_fn(|l| self.texcoords(prims[l], p[l]));
+            s.uv = [0, 1].map(|set| [0, 1].map(|c| f32x8::new(uv.map(|l| l[set][c]))));
+        }
+        s
+    }
+
+    /// Whether some triangles have texture coordinates.
+    #[inline(always)]
+    pub fn has_uv(&self) -> bool {
+        !self.uv.is_empty()
+    }
+
+    /// The texture coordinates (sets 0 and 1) of primitive `prim` at its
+    /// point `p`: a triangle's vertex coordinates interpolated at the
+    /// barycentric coordinates of `p` (as [`Scene::texcoords`] has them),
+    /// zero for spheres.
+    #[inline(always)]
+    pub fn texcoords(&self, prim: usize, p: V3<f32>) -> [[f32; 2]; 2] {
+        match self.uv.get(prim) {
+            Some((v, uv)) => {
+                let b = barycentric(*v, glam::Vec3::from(p));
+                uv.map(|set| interpolate_uv(set, b))
+            }
+            None => [[0.0; 2]; 2],
+        }
     }
 
     /// The front (outward) unit normal of primitive `prim` where the ray
@@ -381,8 +420,16 @@ mod tests {
             })
             .collect();
         let smooth = Tables::new(&scene);
+        // Texture coordinates on every triangle but the first.
+        scene.texturing.uv = (0..scene.triangles.len())
+            .map(|i| match i {
+                0 => [[[0.0; 2]; 3]; 2],
+                _ => std::array::from_fn(|_| std::array::from_fn(|_| [u(), u()])),
+            })
+            .collect();
+        let textured = Tables::new(&scene);
         let prims = scene.triangles.len() + 1;
-        for tables in [&flat, &smooth] {
+        for tables in [&flat, &smooth, &textured] {
             for round in 0..200 {
                 let ps: [usize; 8] = std::array::from_fn(|l| (round * 8 + l * 5) % prims);
                 let v = |u: &mut dyn FnMut() -> f32| V3::new(u(), u(), u());
@@ -401,6 +448,11 @@ mod tests {
                         (one.front, one.prim, one.material),
                         (front, all.prim[l], all.material[l])
                     );
+                    let uv = all.uv.map(|set| set.map(|c| c.to_array()[l].to_bits()));
+                    assert_eq!(one.uv.map(|set| set.map(f32::to_bits)), uv, "lane {l}");
+                    if !tables.has_uv() {
+                        assert_eq!(one.uv, [[0.0; 2]; 2]);
+                    }
                     for (a, b) in [
                         (one.p, all.p),
                         (one.ng, all.ng),
@@ -415,6 +467,78 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A hit's texture coordinates are its triangle's vertex coordinates
+    /// interpolated at the hit, in both sets (at a vertex, that vertex's
+    /// own); triangles without any, and spheres, have zero.
+    #[test]
+    fn texture_coordinates_are_interpolated_at_the_hit() {
+        let mut scene = Scene::cornell();
+        scene.spheres.push(crate::scene::Sphere {
+            center: glam::Vec3::new(0.2, 0.1, 0.3),
+            radius: 0.3,
+            material: 0,
+        });
+        let n = scene.triangles.len();
+        let coords = |i: usize| -> [[[f32; 2]; 3]; 2] {
+            let k = i as f32;
+            [
+                [[0.1 * k, 0.2], [0.9, 0.3 + k], [0.4, -0.7 * k]],
+                [[1.0, 2.0], [3.0, 4.0], [5.0 - k, 6.0]],
+            ]
+        };
+        scene.texturing.uv = (0..n)
+            .map(|i| {
+                if i == 3 {
+                    [[[0.0; 2]; 3]; 2]
+                } else {
+                    coords(i)
+                }
+            })
+            .collect();
+        let tables = Tables::new(&scene);
+        let mut rng = PathRng::new(4, 5, 6);
+        for i in 0..n {
+            let v = scene.triangles[i].v;
+            for round in 0..50 {
+                // A point of known barycentric coordinates (the vertices
+                // themselves first), hit by a ray along the normal.
+                let b = match round {
+                    0..3 => std::array::from_fn(|k| if k == round { 1.0 } else { 0.0 }),
+                    _ => {
+                        let (x, y) = (rng.next_f32(), rng.next_f32());
+                        let (x, y) = if x + y > 1.0 {
+                            (1.0 - x, 1.0 - y)
+                        } else {
+                            (x, y)
+                        };
+                        [1.0 - x - y, x, y]
+                    }
+                };
+                let p = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
+                let normal = scene.triangles[i].normal;
+                let o = p + normal;
+                let hit = tables.surface(i, (V3::from(o), V3::from(-normal)), 1.0);
+                let want = if i == 3 {
+                    [[[0.0; 2]; 3]; 2]
+                } else {
+                    coords(i)
+                };
+                for (set, corners) in want.iter().enumerate() {
+                    for c in [0, 1] {
+                        let w: f32 = corners.iter().zip(b).map(|(uv, b)| uv[c] * b).sum();
+                        let got = hit.uv[set][c];
+                        assert!(
+                            (got - w).abs() <= 1e-4 * (1.0 + w.abs()),
+                            "triangle {i}, b {b:?}: set {set} coordinate {c} is {got}, not {w}"
+                        );
+                    }
+                }
+            }
+        }
+        let sphere = tables.surface(n, (V3::new(0.2, 0.1, 2.0), V3::new(0.0, 0.0, -1.0)), 1.4);
+        assert_eq!(sphere.uv, [[0.0; 2]; 2]);
     }
 
     /// `emits` agrees with the materials for every primitive, and is false

@@ -180,6 +180,8 @@ pub fn scene_from_asset(
     let mut triangles = Vec::with_capacity(asset.instanced_triangles());
     let mut vertex_normals = Vec::new();
     let mut smooth = false;
+    let mut uv: Vec<super::TriangleUv> = Vec::new();
+    let mut textured = false;
     for inst in &asset.instances {
         let mesh = &asset.meshes[inst.mesh as usize];
         let m = inst.transform;
@@ -215,11 +217,20 @@ pub fn scene_from_asset(
                 smooth = true;
                 vertex_normals.push([normals[a], normals[b], normals[c]]);
             }
+            let set = |coords: &[[f32; 2]]| match coords.is_empty() {
+                true => [[0.0; 2]; 3],
+                false => [coords[a], coords[b], coords[c]],
+            };
+            textured |= !mesh.uv0.is_empty() || !mesh.uv1.is_empty();
+            uv.push([set(&mesh.uv0), set(&mesh.uv1)]);
             triangles.push(tri);
         }
     }
     if !smooth {
         vertex_normals.clear();
+    }
+    if !textured {
+        uv.clear();
     }
     let emits = triangles
         .iter()
@@ -236,6 +247,9 @@ pub fn scene_from_asset(
             if smooth {
                 vertex_normals.push([Vec3::ZERO; 3]);
             }
+            if textured {
+                uv.push([[[0.0; 2]; 3]; 2]);
+            }
         }
     }
     let camera = choose_camera(asset, camera, lo, hi).map_err(err)?;
@@ -245,6 +259,7 @@ pub fn scene_from_asset(
         materials,
         triangles,
         vertex_normals,
+        texturing: super::Texturing { uv },
         spheres: Vec::new(),
         max_depth: ASSET_MAX_DEPTH,
         options: RenderOptions::default(),

@@ -859,6 +859,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             v
         },
         triangles,
+        texturing: Default::default(),
         spheres,
         max_depth,
         options,

@@ -71,6 +71,24 @@ fn unit_normal(a: Vec3, b: Vec3) -> Vec3 {
 /// The one scalar routine both engines call for smooth triangles, so they
 /// shade with the same bits.
 pub fn interpolate_normal(v: [Vec3; 3], n: [Vec3; 3], front: Vec3, p: Vec3) -> Vec3 {
+    let [b0, b1, b2] = barycentric(v, p);
+    let m = n[0] * b0 + n[1] * b1 + n[2] * b2;
+    let m = if m.dot(front) < 0.0 { -m } else { m };
+    let u = m.normalize_or_zero();
+    if u == Vec3::ZERO || !u.is_finite() {
+        front
+    } else {
+        u
+    }
+}
+
+/// The barycentric coordinates `[b0, b1, b2]` of the point `p` on the
+/// triangle of vertices `v`, computed from `p` and clamped to the
+/// triangle (a hit point rounded just outside it stays inside). The one
+/// routine every per-vertex attribute is interpolated with (normals,
+/// texture coordinates, colours), in both engines.
+#[inline]
+pub fn barycentric(v: [Vec3; 3], p: Vec3) -> [f32; 3] {
     let (e1, e2, ep) = (v[1] - v[0], v[2] - v[0], p - v[0]);
     let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
     let (dp1, dp2) = (ep.dot(e1), ep.dot(e2));
@@ -84,14 +102,14 @@ pub fn interpolate_normal(v: [Vec3; 3], n: [Vec3; 3], front: Vec3, p: Vec3) -> V
         (b1, b2)
     };
     let b0 = 1.0 - b1 - b2;
-    let m = n[0] * b0 + n[1] * b1 + n[2] * b2;
-    let m = if m.dot(front) < 0.0 { -m } else { m };
-    let u = m.normalize_or_zero();
-    if u == Vec3::ZERO || !u.is_finite() {
-        front
-    } else {
-        u
-    }
+    [b0, b1, b2]
+}
+
+/// The texture coordinates at barycentric coordinates `b` of a triangle
+/// whose vertices have `uv`: `uv0 b0 + uv1 b1 + uv2 b2`, per coordinate.
+#[inline]
+pub fn interpolate_uv(uv: [[f32; 2]; 3], [b0, b1, b2]: [f32; 3]) -> [f32; 2] {
+    [0, 1].map(|c| uv[0][c] * b0 + uv[1][c] * b1 + uv[2][c] * b2)
 }
 
 /// A triangle with a material; its front side is the side `normal` points to.
@@ -141,6 +159,32 @@ impl Triangle {
     }
 }
 
+/// The texture coordinates of a triangle's three vertices, for coordinate
+/// sets 0 and 1: `[set][vertex] = [u, v]`.
+pub type TriangleUv = [[[f32; 2]; 3]; 2];
+
+/// Texture coordinates of triangles' vertices (glTF's `TEXCOORD_0` and
+/// `TEXCOORD_1`, PLY's `u, v`, OBJ's `vt`), in the convention of
+/// [`texture`]: `(0, 0)` is the top-left corner of an image.
+///
+/// Empty when no triangle has any (every scene without textures), else
+/// one entry per triangle, in the order of [`Scene::triangles`], with
+/// zeros for a triangle without. Spheres have none (their texture
+/// coordinates are zero).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Texturing {
+    /// Per triangle, the coordinates of its vertices `v[0..3]`, for
+    /// coordinate sets 0 and 1 (set 1 is zero where the file has none).
+    pub uv: Vec<TriangleUv>,
+}
+
+impl Texturing {
+    /// Whether no triangle has texture coordinates.
+    pub fn is_empty(&self) -> bool {
+        self.uv.is_empty()
+    }
+}
+
 /// Everything a render needs to know about the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -159,6 +203,10 @@ pub struct Scene {
     /// world-space, each vertex's normal for `v[k]`; see
     /// [`Scene::shading_normal`].
     pub vertex_normals: Vec<[Vec3; 3]>,
+    /// Per-vertex texture coordinates and what textured materials read
+    /// ([`Texturing`]); empty in scenes without them, where they cost
+    /// nothing.
+    pub texturing: Texturing,
     /// The analytic spheres. They follow the triangles in the primitive
     /// numbering of hits: sphere `k` is primitive `triangles.len() + k`.
     pub spheres: Vec<Sphere>,
@@ -234,6 +282,17 @@ impl Scene {
         Some(interpolate_normal(t.v, *n, t.normal, p))
     }
 
+    /// The texture coordinates (sets 0 and 1) of triangle `i` at the point
+    /// `p` on it: its vertices' coordinates interpolated at the
+    /// [`barycentric`] coordinates of `p`, or `None` where the scene has
+    /// none (then they are zero).
+    #[inline]
+    pub fn texcoords(&self, i: usize, p: Vec3) -> Option<[[f32; 2]; 2]> {
+        let uv = self.texturing.uv.get(i)?;
+        let b = barycentric(self.triangles[i].v, p);
+        Some(uv.map(|set| interpolate_uv(set, b)))
+    }
+
     /// A 128-bit hash of everything in the scene that changes an image:
     /// geometry, materials and camera (not the name).
     pub fn content_hash(&self) -> u128 {
@@ -268,6 +327,13 @@ impl Scene {
         for n in &self.vertex_normals {
             for v in n {
                 put(*v);
+            }
+        }
+        // (Scenes without texture coordinates hash as before they existed.)
+        for sets in &self.texturing.uv {
+            for set in sets {
+                put(Vec3::new(set[0][0], set[0][1], set[1][0]));
+                put(Vec3::new(set[1][1], set[2][0], set[2][1]));
             }
         }
         // (Scenes without spheres hash as before spheres existed.)
