@@ -23,9 +23,10 @@
 //! aspect ratio (4:3 where the file fixes none).
 
 use super::asset::{Asset, AssetError, PbrMaterial};
+use super::builder::{Origin, SceneBuilder, View};
 use super::camera::Camera;
 use super::{Material, Model, RenderOptions, Scene, SceneError, Triangle};
-use glam::{Mat3, Vec3};
+use glam::{Mat4, Vec3};
 use std::path::Path;
 
 /// The direction the default camera looks from (towards the asset).
@@ -40,45 +41,28 @@ pub const DEFAULT_HEIGHT: u32 = 480;
 /// The maximum path depth of an asset's scene.
 pub const ASSET_MAX_DEPTH: u32 = 5;
 
-/// Whether `path` names an asset file this module reads (by extension).
+/// Whether `path` names an asset file rendered alone (by its extension:
+/// [`MESH_FORMATS`](super::mesh_source::MESH_FORMATS)).
 pub fn is_asset(path: &Path) -> bool {
-    matches!(
-        path.extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref(),
-        Some("gltf" | "glb" | "ply")
-    )
+    super::mesh_source::format_of(path).is_some_and(|f| f.renders_alone)
 }
 
-fn scene_error(e: AssetError) -> SceneError {
-    SceneError {
-        file: e.file,
-        line: 0,
-        column: 0,
-        field: (!e.at.is_empty()).then_some(e.at),
-        message: e.message,
-        mesh: None,
-    }
+/// The scene error of asset error `e`: its file, and its place in the
+/// file (a JSON path or a line) as the field.
+pub fn scene_error(e: AssetError) -> SceneError {
+    Origin::path(&e.file, &e.at).error(e.message)
 }
 
 /// Reads the asset at `path` (glTF, GLB or PLY) and makes its scene, with
 /// the camera named or numbered `camera` (the first by default). Returns
 /// the loader's warnings beside the scene.
 pub fn load(path: &Path, camera: Option<&str>) -> Result<(Scene, Vec<String>), SceneError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let asset = match ext.as_deref() {
-        Some("ply") => super::ply::load(path),
-        _ => super::gltf::load(path),
-    }
-    .map_err(scene_error)?;
+    let asset = super::mesh_source::load(path).map_err(scene_error)?;
     let name = path
         .file_stem()
         .map_or("asset".into(), |s| s.to_string_lossy().into_owned());
-    let scene = scene_from_asset(&asset, &name, &path.display().to_string(), camera)?;
+    let mut scene = scene_from_asset(&asset, &name, &path.display().to_string(), camera)?;
+    scene.sources.push(path.to_path_buf());
     Ok((scene, asset.warnings))
 }
 
@@ -141,134 +125,80 @@ pub fn default_light(lo: Vec3, hi: Vec3) -> [[Vec3; 3]; 2] {
     ]
 }
 
-/// The scene of `asset`: every instance's triangles in world space (a
-/// transform that mirrors keeps each triangle's front where the file has
-/// it), vertex normals by the inverse transpose, interim materials, the
-/// camera named or numbered `camera` (else the first, else the default
-/// one) and the default light where nothing emits. `file` names the asset
-/// in errors.
+/// Adds `asset` to the scene `b` builds: its materials (interim, see the
+/// module documentation; named `prefix:name` where `prefix` is not empty),
+/// then the default material, then every instance's triangles in world
+/// space, each instance placed by `placement` after its own transform
+/// (`None`: as the file places it). `at` is where the asset is named, for
+/// errors.
+pub fn place(
+    b: &mut SceneBuilder,
+    asset: &Asset,
+    placement: Option<Mat4>,
+    prefix: &str,
+    at: &Origin,
+) -> Result<(), SceneError> {
+    let named = |m: Material| match prefix {
+        "" => m,
+        p => Material {
+            name: format!("{p}:{}", m.name),
+            ..m
+        },
+    };
+    let first = b.materials().len() as u32;
+    for m in &asset.materials {
+        b.material(named(interim_material(asset, m)));
+    }
+    let default = PbrMaterial {
+        name: "default".into(),
+        ..PbrMaterial::default()
+    };
+    let default_material = b.material(named(interim_material(asset, &default)));
+    for inst in &asset.instances {
+        let mesh = &asset.meshes[inst.mesh as usize];
+        let transform = placement.map_or(inst.transform, |p| p * inst.transform);
+        let material = mesh.material.map_or(default_material, |m| first + m);
+        b.instance(mesh, transform, material, at)?;
+    }
+    Ok(())
+}
+
+/// The scene of `asset`: the asset as [`place`] adds it (a transform that
+/// mirrors keeps each triangle's front where the file has it, vertex
+/// normals go by the inverse transpose), the camera named or numbered
+/// `camera` (else the first, else the default one) and the default light
+/// where nothing emits. `file` names the asset in errors.
 pub fn scene_from_asset(
     asset: &Asset,
     name: &str,
     file: &str,
     camera: Option<&str>,
 ) -> Result<Scene, SceneError> {
-    let err = |message: String| SceneError {
-        file: file.to_string(),
-        line: 0,
-        column: 0,
-        field: None,
-        message,
-        mesh: None,
-    };
+    let whole = Origin::file(file);
     let (lo, hi) = asset
         .bounds()
-        .ok_or_else(|| err("the asset has no triangles to render".into()))?;
-    let mut materials: Vec<Material> = asset
-        .materials
-        .iter()
-        .map(|m| interim_material(asset, m))
-        .collect();
-    let default_material = materials.len() as u32;
-    materials.push(interim_material(
-        asset,
-        &PbrMaterial {
-            name: "default".into(),
-            ..PbrMaterial::default()
-        },
-    ));
-    let mut triangles = Vec::with_capacity(asset.instanced_triangles());
-    let mut vertex_normals = Vec::new();
-    let mut smooth = false;
-    let mut uv: Vec<super::TriangleUv> = Vec::new();
-    let mut textured = false;
-    for inst in &asset.instances {
-        let mesh = &asset.meshes[inst.mesh as usize];
-        let m = inst.transform;
-        let normal_matrix = Mat3::from_mat4(m).inverse().transpose();
-        let mirrored = Mat3::from_mat4(m).determinant() < 0.0;
-        let material = mesh.material.unwrap_or(default_material);
-        let world: Vec<Vec3> = mesh
-            .positions
-            .iter()
-            .map(|p| m.transform_point3(*p))
-            .collect();
-        if let Some(p) = world.iter().find(|p| !p.is_finite()) {
-            return Err(err(format!(
-                "{}: a transformed vertex is not finite: {p}",
-                mesh.name
-            )));
-        }
-        let normals: Vec<Vec3> = mesh
-            .normals
-            .iter()
-            .map(|n| (normal_matrix * *n).try_normalize().unwrap_or(Vec3::ZERO))
-            .collect();
-        for t in &mesh.triangles {
-            let [a, b, c] = t.map(|i| i as usize);
-            let (b, c) = if mirrored { (c, b) } else { (b, c) };
-            let tri = Triangle::ccw([world[a], world[b], world[c]], material);
-            if tri.normal == Vec3::ZERO {
-                continue;
-            }
-            if normals.is_empty() {
-                vertex_normals.push([Vec3::ZERO; 3]);
-            } else {
-                smooth = true;
-                vertex_normals.push([normals[a], normals[b], normals[c]]);
-            }
-            let set = |coords: &[[f32; 2]]| match coords.is_empty() {
-                true => [[0.0; 2]; 3],
-                false => [coords[a], coords[b], coords[c]],
-            };
-            textured |= !mesh.uv0.is_empty() || !mesh.uv1.is_empty();
-            uv.push([set(&mesh.uv0), set(&mesh.uv1)]);
-            triangles.push(tri);
-        }
-    }
-    if !smooth {
-        vertex_normals.clear();
-    }
-    if !textured {
-        uv.clear();
-    }
-    let emits = triangles
-        .iter()
-        .any(|t| materials[t.material as usize].is_emissive());
-    if !emits {
-        let light = materials.len() as u32;
-        materials.push(Material::diffuse(
+        .ok_or_else(|| whole.error("the asset has no triangles to render"))?;
+    let mut b = SceneBuilder::new(name);
+    place(&mut b, asset, None, "", &whole)?;
+    if !b.has_emitting_triangle() {
+        let light = b.material(Material::diffuse(
             "default light",
             Vec3::ZERO,
             Vec3::splat(3.0),
         ));
         for v in default_light(lo, hi) {
-            triangles.push(Triangle::ccw(v, light));
-            if smooth {
-                vertex_normals.push([Vec3::ZERO; 3]);
-            }
-            if textured {
-                uv.push([[[0.0; 2]; 3]; 2]);
-            }
+            b.push(Triangle::ccw(v, light), None, None);
         }
     }
-    let camera = choose_camera(asset, camera, lo, hi).map_err(err)?;
-    Ok(Scene {
-        name: name.to_string(),
-        camera,
-        materials,
-        triangles,
-        vertex_normals,
-        texturing: super::Texturing { uv },
-        spheres: Vec::new(),
-        max_depth: ASSET_MAX_DEPTH,
-        options: RenderOptions::default(),
-    })
+    let view = choose_camera(asset, camera, lo, hi).map_err(|m| whole.error(m))?;
+    b.camera(view, &whole)?;
+    b.settings(ASSET_MAX_DEPTH, RenderOptions::default());
+    b.finish(&whole)
 }
 
 /// The camera `which` (a name, or an index among the file's cameras), the
 /// first, or the default framing of the bounds.
-fn choose_camera(asset: &Asset, which: Option<&str>, lo: Vec3, hi: Vec3) -> Result<Camera, String> {
+fn choose_camera(asset: &Asset, which: Option<&str>, lo: Vec3, hi: Vec3) -> Result<View, String> {
     let chosen = match which {
         Some(w) => {
             let found = asset
@@ -316,13 +246,12 @@ fn choose_camera(asset: &Asset, which: Option<&str>, lo: Vec3, hi: Vec3) -> Resu
     let height = DEFAULT_HEIGHT;
     let width = ((height as f32 * aspect).round() as u32).clamp(1, 16 * DEFAULT_HEIGHT);
     let (position, forward, up) = camera;
-    Camera::new(
+    Ok(View {
         position,
         forward,
         up,
-        Camera::focal_from_vfov(vfov, height),
+        focal_px: Camera::focal_from_vfov(vfov, height),
         width,
         height,
-    )
-    .ok_or_else(|| "the camera's direction is degenerate".to_string())
+    })
 }

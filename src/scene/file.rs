@@ -3,47 +3,18 @@
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
 
-use super::{
-    AovSet, Integrator, Material, Model, RenderOptions, SamplerKind, Scene, Sphere, Triangle,
-};
+use super::builder::{Origin, Placement, SceneBuilder, View};
+use super::{AovSet, Integrator, Material, Model, RenderOptions, SamplerKind, Scene};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt;
+use std::ops::Range;
+use std::path::Path;
 use toml::Spanned;
 
-/// A scene file that cannot be used, and where the problem is.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub struct SceneError {
-    /// The file (or a label for in-memory text).
-    pub file: String,
-    /// 1-based line; 0 when the problem has no place in the file.
-    pub line: usize,
-    /// 1-based column; 0 when unknown.
-    pub column: usize,
-    /// The dotted path of the offending field, when known.
-    pub field: Option<String>,
-    /// What is wrong.
-    pub message: String,
-    /// The mesh file's own error, when the problem is in a mesh the scene
-    /// loads (`file` and `line` are then the mesh file's).
-    #[source]
-    pub mesh: Option<Box<super::obj::ObjError>>,
-}
-
-impl fmt::Display for SceneError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.file)?;
-        if self.line > 0 {
-            write!(f, ":{}:{}", self.line, self.column)?;
-        }
-        if let Some(field) = &self.field {
-            write!(f, ": field `{field}`")?;
-        }
-        write!(f, ": {}", self.message)
-    }
-}
+pub use super::builder::{MAX_SCENE_TRIANGLES, SceneError};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -162,11 +133,6 @@ struct GenerateFile {
 /// The most triangles one `[[generate]]` entry may ask for.
 pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
 
-/// The most triangles a scene may have, all entries together: checked
-/// before each mesh is added and each `[[generate]]` entry is made, so a
-/// file of many large entries is refused before it fills the memory.
-pub const MAX_SCENE_TRIANGLES: usize = 100_000_000;
-
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraFile {
@@ -254,566 +220,582 @@ struct QuadFile {
 
 /// Parse scene text; `file` names it in errors.
 pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
-    let at = |span: std::ops::Range<usize>, field: &str, message: String| {
-        let (line, column) = line_col(text, span.start);
-        SceneError {
-            mesh: None,
-            file: file.to_string(),
+    let t = Toml { text, file };
+    let raw = t.read()?;
+    let ccw = front_face(&t, raw.front_face.as_ref(), "front_face")?;
+    let name = raw.name.clone().unwrap_or_else(|| {
+        Path::new(file)
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let mut b = SceneBuilder::new(&name);
+    camera(&t, &raw.camera, &mut b)?;
+    let names = materials(&t, &raw.materials, &mut b)?;
+    // Geometry: triangles, then quads, then OBJ meshes, then generated
+    // meshes, then spheres, each in file order.
+    polygons(&t, &raw, ccw, &names, &mut b)?;
+    for (i, m) in raw.meshes.iter().enumerate() {
+        mesh(&t, i, m.get_ref(), &names, &mut b)?;
+    }
+    for (i, g) in raw.generated.iter().enumerate() {
+        generate(&t, i, g.get_ref(), &names, &mut b)?;
+    }
+    for (i, s) in raw.spheres.iter().enumerate() {
+        sphere(&t, i, s.get_ref(), &names, &mut b)?;
+    }
+    let whole = Origin::file(file);
+    if b.is_empty() {
+        return Err(whole.error(
+            "the scene has no geometry (no [[triangle]], [[quad]], [[sphere]], [[mesh]] or [[generate]])",
+        ));
+    }
+    let (max_depth, options) = integrator(&t, &raw.integrator)?;
+    b.settings(max_depth, options);
+    b.finish(&whole)
+}
+
+/// The TOML text being read, and places in it for errors.
+struct Toml<'a> {
+    text: &'a str,
+    file: &'a str,
+}
+
+impl Toml<'_> {
+    /// The text as its tables, or the TOML or serde error at its place.
+    fn read(&self) -> Result<SceneFile, SceneError> {
+        toml::from_str(self.text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| line_col(self.text, s.start));
+            SceneError {
+                mesh: None,
+                file: self.file.to_string(),
+                line,
+                column,
+                field: field_at(self.text, e.span().map(|s| s.start), field_of(e.message())),
+                message: e.message().trim().to_string(),
+            }
+        })
+    }
+
+    /// The place of `span`, which holds `field`.
+    fn origin(&self, span: Range<usize>, field: &str) -> Origin {
+        let (line, column) = line_col(self.text, span.start);
+        Origin {
+            file: self.file.to_string(),
             line,
             column,
             field: Some(field.to_string()),
-            message,
         }
-    };
-    let raw: SceneFile = toml::from_str(text).map_err(|e| {
-        let (line, column) = e.span().map_or((0, 0), |s| line_col(text, s.start));
-        SceneError {
-            mesh: None,
-            file: file.to_string(),
-            line,
-            column,
-            field: field_at(text, e.span().map(|s| s.start), field_of(e.message())),
-            message: e.message().trim().to_string(),
-        }
-    })?;
+    }
 
-    let ccw = match raw.front_face.as_ref().map(|s| s.get_ref().as_str()) {
-        None | Some("counterclockwise") => true,
-        Some("clockwise") => false,
-        Some(other) => {
-            let s = raw.front_face.as_ref().unwrap();
-            return Err(at(
-                s.span(),
-                "front_face",
-                format!("must be \"counterclockwise\" or \"clockwise\", not {other:?}"),
-            ));
-        }
-    };
+    /// The error `message` about `field`, written at `span`.
+    fn err(&self, span: Range<usize>, field: &str, message: impl Into<String>) -> SceneError {
+        self.origin(span, field).error(message)
+    }
 
-    // Camera.
-    let cam = raw.camera.get_ref();
-    let vec = |s: &Spanned<Exact<[f32; 3]>>, field: &str| -> Result<Vec3, SceneError> {
+    /// A vector of finite numbers.
+    fn vec(&self, s: &Spanned<Exact<[f32; 3]>>, field: &str) -> Result<Vec3, SceneError> {
         let v = Vec3::from_array(s.get_ref().0);
         if v.is_finite() {
             Ok(v)
         } else {
-            Err(at(s.span(), field, "must be finite numbers".into()))
+            Err(self.err(s.span(), field, "must be finite numbers"))
         }
-    };
-    let position = vec(&cam.position, "camera.position")?;
+    }
+
+    /// The directory the file's relative paths start from.
+    fn base(&self) -> &Path {
+        Path::new(self.file).parent().unwrap_or(Path::new(""))
+    }
+}
+
+/// A `front_face` (counter-clockwise unless it says otherwise).
+fn front_face(t: &Toml, value: Option<&Spanned<String>>, field: &str) -> Result<bool, SceneError> {
+    match value.map(|s| (s, s.get_ref().as_str())) {
+        None | Some((_, "counterclockwise")) => Ok(true),
+        Some((_, "clockwise")) => Ok(false),
+        Some((s, other)) => Err(t.err(
+            s.span(),
+            field,
+            format!("must be \"counterclockwise\" or \"clockwise\", not {other:?}"),
+        )),
+    }
+}
+
+/// The `[camera]` table.
+fn camera(t: &Toml, raw: &Spanned<CameraFile>, b: &mut SceneBuilder) -> Result<(), SceneError> {
+    let cam = raw.get_ref();
+    let position = t.vec(&cam.position, "camera.position")?;
     let forward = match (&cam.forward, &cam.look_at) {
-        (Some(f), None) => vec(f, "camera.forward")?,
-        (None, Some(l)) => vec(l, "camera.look_at")? - position,
+        (Some(f), None) => t.vec(f, "camera.forward")?,
+        (None, Some(l)) => t.vec(l, "camera.look_at")? - position,
         _ => {
-            return Err(at(
-                raw.camera.span(),
+            return Err(t.err(
+                raw.span(),
                 "camera",
-                "give exactly one of `forward` and `look_at`".into(),
+                "give exactly one of `forward` and `look_at`",
             ));
         }
     };
-    let up = vec(&cam.up, "camera.up")?;
+    let up = t.vec(&cam.up, "camera.up")?;
     for (s, field) in [(&cam.width, "camera.width"), (&cam.height, "camera.height")] {
         if *s.get_ref() == 0 {
-            return Err(at(s.span(), field, "must be at least 1".into()));
+            return Err(t.err(s.span(), field, "must be at least 1"));
         }
     }
     let (width, height) = (*cam.width.get_ref(), *cam.height.get_ref());
-    let focal = match (&cam.focal_length_px, &cam.vfov_deg) {
+    let focal = focal_length(t, raw, height)?;
+    let at = t.origin(cam.up.span(), "camera.up");
+    let view = View {
+        position,
+        forward,
+        up,
+        focal_px: focal,
+        width,
+        height,
+    };
+    b.camera(view, &at)
+}
+
+/// The camera's focal length in pixels: given, or from its vertical field
+/// of view and the image height.
+fn focal_length(t: &Toml, raw: &Spanned<CameraFile>, height: u32) -> Result<f32, SceneError> {
+    let cam = raw.get_ref();
+    match (&cam.focal_length_px, &cam.vfov_deg) {
         (Some(f), None) => {
             let v = *f.get_ref();
             if !(v.is_finite() && v > 0.0) {
-                return Err(at(
+                return Err(t.err(
                     f.span(),
                     "camera.focal_length_px",
-                    "must be a positive number".into(),
+                    "must be a positive number",
                 ));
             }
-            v
+            Ok(v)
         }
         (None, Some(a)) => {
             let v = *a.get_ref();
             if !(v > 0.0 && v < 180.0) {
-                return Err(at(
+                return Err(t.err(
                     a.span(),
                     "camera.vfov_deg",
-                    "must be between 0 and 180 degrees".into(),
+                    "must be between 0 and 180 degrees",
                 ));
             }
-            Camera::focal_from_vfov(v, height)
+            Ok(Camera::focal_from_vfov(v, height))
         }
-        _ => {
-            return Err(at(
-                raw.camera.span(),
-                "camera",
-                "give exactly one of `focal_length_px` and `vfov_deg`".into(),
-            ));
-        }
-    };
-    let camera = Camera::new(position, forward, up, focal, width, height).ok_or_else(|| {
-        at(
-            cam.up.span(),
-            "camera.up",
-            "the viewing direction must be non-zero and not parallel to `up`".into(),
-        )
-    })?;
+        _ => Err(t.err(
+            raw.span(),
+            "camera",
+            "give exactly one of `focal_length_px` and `vfov_deg`",
+        )),
+    }
+}
 
-    // Materials.
-    let mut materials = Vec::new();
+/// The `[materials]` table's names, and the index each is given.
+struct Names<'a> {
+    index: BTreeMap<&'a str, u32>,
+}
+
+impl Names<'_> {
+    /// The index of the material `name` refers to, written as `field`.
+    fn get(&self, t: &Toml, name: &Spanned<String>, field: &str) -> Result<u32, SceneError> {
+        self.index
+            .get(name.get_ref().as_str())
+            .copied()
+            .ok_or_else(|| {
+                t.err(
+                    name.span(),
+                    field,
+                    format!(
+                        "no material named {:?} (the file defines: {})",
+                        name.get_ref(),
+                        self.index.keys().copied().collect::<Vec<_>>().join(", ")
+                    ),
+                )
+            })
+    }
+}
+
+/// The `[materials]` table, added in name order.
+fn materials<'a>(
+    t: &Toml,
+    raw: &'a BTreeMap<String, Spanned<MaterialFile>>,
+    b: &mut SceneBuilder,
+) -> Result<Names<'a>, SceneError> {
     let mut index = BTreeMap::new();
-    for (name, m) in &raw.materials {
-        let m_ref = m.get_ref();
-        let model = match &m_ref.model {
-            None => Model::Diffuse,
-            Some(model) => match Model::from_name(model.get_ref()) {
-                Some(m) => m,
-                None => {
-                    return Err(at(
-                        model.span(),
-                        &format!("materials.{name}.model"),
-                        format!(
-                            "unknown model {:?} (known: {})",
-                            model.get_ref(),
-                            Model::NAMES.join(", ")
-                        ),
-                    ));
-                }
-            },
-        };
-        // A field the model does not read is refused, not ignored.
-        let unused =
-            |present: Option<std::ops::Range<usize>>, key: &str, models: &str| match present {
-                Some(span) => Err(at(
-                    span,
-                    &format!("materials.{name}.{key}"),
-                    format!("{} materials have no {key} (only {models})", model.name()),
-                )),
-                None => Ok(()),
-            };
-        let unit_color = |v: &Spanned<Exact<[f32; 3]>>, key: &str| -> Result<Vec3, SceneError> {
-            let field = format!("materials.{name}.{key}");
-            let c = vec(v, &field)?;
-            if c.min_element() < 0.0 || c.max_element() > 1.0 {
-                return Err(at(
-                    v.span(),
-                    &field,
-                    "each component must be in [0, 1]".into(),
-                ));
-            }
-            Ok(c)
-        };
-        let reflectance = match (&m_ref.reflectance, model) {
-            (Some(r), Model::Glass) => {
-                unused(Some(r.span()), "reflectance", "diffuse, mirror and metal")?;
-                Vec3::ONE
-            }
-            (Some(r), _) => unit_color(r, "reflectance")?,
-            (None, Model::Glass) => Vec3::ONE,
-            (None, _) => {
-                return Err(at(
-                    m.span(),
-                    &format!("materials.{name}.reflectance"),
-                    format!("a {} material needs a reflectance", model.name()),
-                ));
-            }
-        };
-        let emission = match &m_ref.emission {
-            None => Vec3::ZERO,
-            Some(e) => {
-                let field = format!("materials.{name}.emission");
-                let v = vec(e, &field)?;
-                if v.min_element() < 0.0 {
-                    return Err(at(e.span(), &field, "must not be negative".into()));
-                }
-                v
-            }
-        };
-        let mut material = Material {
-            model,
-            reflectance,
-            emission,
-            ..Material::diffuse(name, reflectance, emission)
-        };
-        if model == Model::Glass {
-            if let Some(ior) = &m_ref.ior {
-                let v = *ior.get_ref();
-                let range = super::material::IOR_RANGE;
-                if !range.contains(&v) {
-                    return Err(at(
-                        ior.span(),
-                        &format!("materials.{name}.ior"),
-                        format!(
-                            "must be an index of refraction from {} to {} (e.g. 1.5 for glass), not {v}",
-                            range.start(),
-                            range.end()
-                        ),
-                    ));
-                }
-                material.ior = v;
-            }
-            if let Some(t) = &m_ref.transmittance {
-                material.transmittance = unit_color(t, "transmittance")?;
-            }
-        } else {
-            unused(m_ref.ior.as_ref().map(|v| v.span()), "ior", "glass")?;
-            let t = m_ref.transmittance.as_ref().map(|v| v.span());
-            unused(t, "transmittance", "glass")?;
-        }
-        if model == Model::Metal {
-            if let Some(alpha) = &m_ref.alpha {
-                let v = *alpha.get_ref();
-                if !(0.0..=1.0).contains(&v) {
-                    return Err(at(
-                        alpha.span(),
-                        &format!("materials.{name}.alpha"),
-                        "must be a GGX roughness in [0, 1] (0: a mirror)".into(),
-                    ));
-                }
-                material.alpha = v;
-            }
-        } else {
-            unused(m_ref.alpha.as_ref().map(|v| v.span()), "alpha", "metal")?;
-        }
-        index.insert(name.clone(), materials.len() as u32);
-        materials.push(material);
+    for (name, m) in raw {
+        let material = material(t, name, m)?;
+        index.insert(name.as_str(), b.material(material));
     }
+    Ok(Names { index })
+}
 
-    // Geometry: triangles, then quads (each split into two triangles).
-    let mut triangles = Vec::new();
-    // Per-vertex normals of the triangles that have them (and zeros for
-    // the flat ones before them); filled up to every triangle at the end
-    // if any triangle has them.
-    let mut vertex_normals: Vec<[Vec3; 3]> = Vec::new();
-    let polygons = raw
-        .triangles
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let t = t.get_ref();
-            let v = t.vertices.get_ref();
-            (
-                format!("triangle[{i}]"),
-                &t.material,
-                t.vertices.span(),
-                v.0.to_vec(),
-            )
-        })
-        .chain(raw.quads.iter().enumerate().map(|(i, q)| {
-            let q = q.get_ref();
-            let v = q.vertices.get_ref();
-            (
-                format!("quad[{i}]"),
-                &q.material,
-                q.vertices.span(),
-                v.0.to_vec(),
-            )
-        }));
-    for (what, material, span, verts) in polygons {
-        let m = *index.get(material.get_ref()).ok_or_else(|| {
-            at(
-                material.span(),
-                &format!("{what}.material"),
+/// One material of the `[materials]` table.
+fn material(t: &Toml, name: &str, m: &Spanned<MaterialFile>) -> Result<Material, SceneError> {
+    let f = m.get_ref();
+    let model = match &f.model {
+        None => Model::Diffuse,
+        Some(model) => Model::from_name(model.get_ref()).ok_or_else(|| {
+            t.err(
+                model.span(),
+                &format!("materials.{name}.model"),
                 format!(
-                    "no material named {:?} (the file defines: {})",
-                    material.get_ref(),
-                    raw.materials.keys().cloned().collect::<Vec<_>>().join(", ")
+                    "unknown model {:?} (known: {})",
+                    model.get_ref(),
+                    Model::NAMES.join(", ")
                 ),
             )
-        })?;
-        let verts: Vec<Vec3> = verts.into_iter().map(Vec3::from_array).collect();
-        if verts.iter().any(|v| !v.is_finite()) {
-            return Err(at(
-                span,
-                &format!("{what}.vertices"),
-                "must be finite numbers".into(),
-            ));
-        }
-        let fans: &[[usize; 3]] = if verts.len() == 4 {
-            &[[0, 1, 2], [0, 2, 3]]
-        } else {
-            &[[0, 1, 2]]
-        };
-        for f in fans {
-            let v = [verts[f[0]], verts[f[1]], verts[f[2]]];
-            let t = if ccw {
-                Triangle::ccw(v, m)
-            } else {
-                Triangle::cw(v, m)
-            };
-            if t.normal == Vec3::ZERO {
-                return Err(at(
-                    span.clone(),
-                    &format!("{what}.vertices"),
-                    "the vertices do not span a triangle (zero area)".into(),
-                ));
-            }
-            triangles.push(t);
-        }
-    }
-    // Meshes: OBJ files, then generated meshes, each in file order.
-    let base = std::path::Path::new(file)
-        .parent()
-        .unwrap_or(std::path::Path::new(""));
-    let material_named = |name: &Spanned<String>, field: &str| -> Result<u32, SceneError> {
-        index.get(name.get_ref()).copied().ok_or_else(|| {
-            at(
-                name.span(),
-                field,
-                format!(
-                    "no material named {:?} (the file defines: {})",
-                    name.get_ref(),
-                    raw.materials.keys().cloned().collect::<Vec<_>>().join(", ")
-                ),
-            )
-        })
+        })?,
     };
-    for (i, m) in raw.meshes.iter().enumerate() {
-        let what = format!("mesh[{i}]");
-        let m = m.get_ref();
-        let transform = transform(
-            &at,
-            &what,
-            m.scale.as_ref(),
-            m.rotate_deg.as_ref(),
-            m.translate.as_ref(),
-        )?;
-        let mesh_ccw = mesh_front_face(&at, &what, m.front_face.as_ref())?;
-        let fallback = m
-            .material
-            .as_ref()
-            .map(|n| material_named(n, &format!("{what}.material")))
-            .transpose()?;
-        let with_mtl = m.mtl.as_ref().is_some_and(|b| *b.get_ref());
-        if fallback.is_none() && !with_mtl {
-            return Err(at(
-                m.file.span(),
-                &what,
-                "give a `material`, or `mtl = true` to take materials from the OBJ's MTL files"
-                    .into(),
+    let fields = MaterialFields { t, name, model };
+    let reflectance = match (&f.reflectance, model) {
+        (Some(r), Model::Glass) => {
+            fields.unused(Some(r.span()), "reflectance", "diffuse, mirror and metal")?;
+            Vec3::ONE
+        }
+        (Some(r), _) => fields.unit_color(r, "reflectance")?,
+        (None, Model::Glass) => Vec3::ONE,
+        (None, _) => {
+            return Err(t.err(
+                m.span(),
+                &format!("materials.{name}.reflectance"),
+                format!("a {} material needs a reflectance", model.name()),
             ));
         }
-        let path = base.join(m.file.get_ref());
-        let obj = super::obj::load(&path, with_mtl).map_err(|e| {
-            let (line, column) = line_col(text, m.file.span().start);
-            SceneError {
-                mesh: Some(Box::new(e.clone())),
-                file: e.file.display().to_string(),
-                line: e.line,
-                column: if e.line > 0 { 1 } else { 0 },
-                field: None,
-                message: format!("{} (the mesh of {what}, {file}:{line}:{column})", e.message),
+    };
+    let emission = match &f.emission {
+        None => Vec3::ZERO,
+        Some(e) => {
+            let field = format!("materials.{name}.emission");
+            let v = t.vec(e, &field)?;
+            if v.min_element() < 0.0 {
+                return Err(t.err(e.span(), &field, "must not be negative"));
             }
-        })?;
-        if triangles.len() + obj.triangles.len() > MAX_SCENE_TRIANGLES {
-            return Err(at(
-                m.file.span(),
-                &what,
+            v
+        }
+    };
+    let mut material = Material {
+        model,
+        reflectance,
+        emission,
+        ..Material::diffuse(name, reflectance, emission)
+    };
+    fields.glass(f, &mut material)?;
+    fields.metal(f, &mut material)?;
+    Ok(material)
+}
+
+/// The fields of material `name`, of model `model`.
+struct MaterialFields<'a> {
+    t: &'a Toml<'a>,
+    name: &'a str,
+    model: Model,
+}
+
+impl MaterialFields<'_> {
+    /// Refuses a field the model does not read (`present`: where it is
+    /// written), rather than ignoring it.
+    fn unused(
+        &self,
+        present: Option<Range<usize>>,
+        key: &str,
+        models: &str,
+    ) -> Result<(), SceneError> {
+        match present {
+            Some(span) => Err(self.t.err(
+                span,
+                &format!("materials.{}.{key}", self.name),
                 format!(
-                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this mesh, {} in it)",
-                    triangles.len(),
-                    obj.triangles.len()
+                    "{} materials have no {key} (only {models})",
+                    self.model.name()
                 ),
-            ));
-        }
-        // The OBJ's materials become scene materials named "file:name".
-        let mut mtl_index = Vec::new();
-        for om in &obj.materials {
-            let name = format!("{}:{}", m.file.get_ref(), om.name);
-            mtl_index.push(materials.len() as u32);
-            materials.push(Material::diffuse(&name, om.diffuse, om.emission));
-        }
-        // Normals go by the inverse transpose of the transform's linear part.
-        let normal_matrix = transform.matrix3.inverse().transpose();
-        for ((tri, mat), normals) in obj.triangles.iter().zip(&obj.material).zip(&obj.normals) {
-            let mat = match mat.map(|k| mtl_index[k]).or(fallback) {
-                Some(mat) => mat,
-                None => {
-                    return Err(at(
-                        m.file.span(),
-                        &what,
-                        format!(
-                            "{}: some faces have no material (no `usemtl`, or one its MTL files \
-                             do not define) and the mesh gives no fallback `material`",
-                            path.display()
-                        ),
-                    ));
-                }
-            };
-            let before = triangles.len();
-            push_mesh_triangle(&mut triangles, &transform, mesh_ccw, *tri, mat)
-                .map_err(|e| at(m.file.span(), &what, e))?;
-            if let (Some(n), true) = (normals, triangles.len() > before) {
-                // World-space unit normals (a transform that makes one
-                // degenerate leaves that vertex's normal zero: the
-                // interpolation then falls back to the geometric normal
-                // wherever the sum degenerates).
-                let n = n.map(|n| {
-                    let w = (normal_matrix * glam::Vec3A::from(n)).normalize_or_zero();
-                    if w.is_finite() {
-                        Vec3::from(w)
-                    } else {
-                        Vec3::ZERO
-                    }
-                });
-                vertex_normals.resize(before, [Vec3::ZERO; 3]);
-                vertex_normals.push(n);
-            }
+            )),
+            None => Ok(()),
         }
     }
-    for (i, g) in raw.generated.iter().enumerate() {
-        let what = format!("generate[{i}]");
-        let g = g.get_ref();
-        let mat = material_named(&g.material, &format!("{what}.material"))?;
-        let n = *g.triangles.get_ref();
-        if n == 0 || n > MAX_GENERATED_TRIANGLES {
-            return Err(at(
-                g.triangles.span(),
-                &format!("{what}.triangles"),
-                format!("must be between 1 and {MAX_GENERATED_TRIANGLES}"),
-            ));
+
+    /// A colour of components in [0, 1].
+    fn unit_color(&self, v: &Spanned<Exact<[f32; 3]>>, key: &str) -> Result<Vec3, SceneError> {
+        let field = format!("materials.{}.{key}", self.name);
+        let c = self.t.vec(v, &field)?;
+        if c.min_element() < 0.0 || c.max_element() > 1.0 {
+            return Err(self
+                .t
+                .err(v.span(), &field, "each component must be in [0, 1]"));
         }
-        if triangles.len() as u64 + n > MAX_SCENE_TRIANGLES as u64 {
-            return Err(at(
-                g.triangles.span(),
-                &format!("{what}.triangles"),
-                format!(
-                    "the scene would have more than {MAX_SCENE_TRIANGLES} triangles ({} before this entry)",
-                    triangles.len()
-                ),
-            ));
+        Ok(c)
+    }
+
+    /// Glass's `ior` and `transmittance` (refused on other models).
+    fn glass(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
+        if self.model != Model::Glass {
+            self.unused(f.ior.as_ref().map(|v| v.span()), "ior", "glass")?;
+            let t = f.transmittance.as_ref().map(|v| v.span());
+            return self.unused(t, "transmittance", "glass");
         }
-        let transform = transform(
-            &at,
-            &what,
-            g.scale.as_ref(),
-            g.rotate_deg.as_ref(),
-            g.translate.as_ref(),
-        )?;
-        let center = match &g.center {
-            Some(c) => vec(c, &format!("{what}.center"))?,
-            None => Vec3::ZERO,
-        };
-        let positive = |v: &Option<Spanned<f32>>, field: &str, default: f32, zero_ok: bool| match v
-        {
-            None => Ok(default),
-            Some(s) => {
-                let x = *s.get_ref();
-                if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) {
-                    Ok(x)
-                } else {
-                    Err(at(
-                        s.span(),
-                        &format!("{what}.{field}"),
-                        "must be a positive number".into(),
-                    ))
-                }
-            }
-        };
-        let unused = |present: bool, span: Option<std::ops::Range<usize>>, field: &str| {
-            if present {
-                Err(at(
-                    span.unwrap_or(g.kind.span()),
-                    &format!("{what}.{field}"),
-                    format!("`{field}` does not apply to kind {:?}", g.kind.get_ref()),
-                ))
-            } else {
-                Ok(())
-            }
-        };
-        let tris = match g.kind.get_ref().as_str() {
-            "sphere" => {
-                unused(g.size.is_some(), g.size.as_ref().map(|s| s.span()), "size")?;
-                unused(
-                    g.height.is_some(),
-                    g.height.as_ref().map(|s| s.span()),
-                    "height",
-                )?;
-                unused(g.seed.is_some(), g.seed.as_ref().map(|s| s.span()), "seed")?;
-                let radius = positive(&g.radius, "radius", 1.0, false)?;
-                crate::scene::mesh::geodesic_sphere(center, radius, n as usize)
-            }
-            "terrain" => {
-                unused(
-                    g.radius.is_some(),
-                    g.radius.as_ref().map(|s| s.span()),
-                    "radius",
-                )?;
-                let size = match &g.size {
-                    None => [1.0, 1.0],
-                    Some(s) => {
-                        let v = s.get_ref().0;
-                        if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
-                            return Err(at(
-                                s.span(),
-                                &format!("{what}.size"),
-                                "must be two positive numbers".into(),
-                            ));
-                        }
-                        v
-                    }
-                };
-                let height = positive(&g.height, "height", 0.1, true)?;
-                let seed = g.seed.as_ref().map_or(0, |s| *s.get_ref());
-                crate::scene::mesh::terrain(center, size, height, n as usize, seed)
-            }
-            other => {
-                return Err(at(
-                    g.kind.span(),
-                    &format!("{what}.kind"),
-                    format!("unknown kind {other:?} (known: \"sphere\", \"terrain\")"),
+        if let Some(ior) = &f.ior {
+            let v = *ior.get_ref();
+            let range = super::material::IOR_RANGE;
+            if !range.contains(&v) {
+                return Err(self.t.err(
+                    ior.span(),
+                    &format!("materials.{}.ior", self.name),
+                    format!(
+                        "must be an index of refraction from {} to {} (e.g. 1.5 for glass), not {v}",
+                        range.start(),
+                        range.end()
+                    ),
                 ));
             }
-        };
-        for tri in tris {
-            push_mesh_triangle(&mut triangles, &transform, true, tri, mat)
-                .map_err(|e| at(g.kind.span(), &what, e))?;
+            material.ior = v;
         }
-    }
-
-    let mut spheres = Vec::new();
-    for (i, sp) in raw.spheres.iter().enumerate() {
-        let what = format!("sphere[{i}]");
-        let sp = sp.get_ref();
-        let center = vec(&sp.center, &format!("{what}.center"))?;
-        let radius = *sp.radius.get_ref();
-        if !(radius.is_finite() && radius > 0.0) {
-            return Err(at(
-                sp.radius.span(),
-                &format!("{what}.radius"),
-                "must be a positive, finite number".into(),
-            ));
+        if let Some(tr) = &f.transmittance {
+            material.transmittance = self.unit_color(tr, "transmittance")?;
         }
-        let material = material_named(&sp.material, &format!("{what}.material"))?;
-        spheres.push(Sphere {
-            center,
-            radius,
-            material,
-        });
+        Ok(())
     }
 
-    if triangles.is_empty() && spheres.is_empty() {
-        return Err(SceneError {
-            mesh: None,
-            file: file.to_string(),
-            line: 0,
-            column: 0,
-            field: None,
-            message:
-                "the scene has no geometry (no [[triangle]], [[quad]], [[sphere]], [[mesh]] or [[generate]])"
-                    .into(),
-        });
+    /// Metal's `alpha` (refused on other models).
+    fn metal(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
+        if self.model != Model::Metal {
+            return self.unused(f.alpha.as_ref().map(|v| v.span()), "alpha", "metal");
+        }
+        if let Some(alpha) = &f.alpha {
+            let v = *alpha.get_ref();
+            if !(0.0..=1.0).contains(&v) {
+                return Err(self.t.err(
+                    alpha.span(),
+                    &format!("materials.{}.alpha", self.name),
+                    "must be a GGX roughness in [0, 1] (0: a mirror)",
+                ));
+            }
+            material.alpha = v;
+        }
+        Ok(())
     }
+}
 
-    let max_depth = *raw.integrator.max_depth.get_ref();
+/// The `[[triangle]]`s, then the `[[quad]]`s (each split in two).
+fn polygons(
+    t: &Toml,
+    raw: &SceneFile,
+    ccw: bool,
+    names: &Names,
+    b: &mut SceneBuilder,
+) -> Result<(), SceneError> {
+    let triangles = raw.triangles.iter().enumerate().map(|(i, tr)| {
+        let tr = tr.get_ref();
+        let v = &tr.vertices;
+        let what = format!("triangle[{i}]");
+        (what, &tr.material, v.span(), v.get_ref().0.to_vec())
+    });
+    let quads = raw.quads.iter().enumerate().map(|(i, q)| {
+        let q = q.get_ref();
+        let v = &q.vertices;
+        (
+            format!("quad[{i}]"),
+            &q.material,
+            v.span(),
+            v.get_ref().0.to_vec(),
+        )
+    });
+    for (what, material, span, verts) in triangles.chain(quads) {
+        let m = names.get(t, material, &format!("{what}.material"))?;
+        let verts: Vec<Vec3> = verts.into_iter().map(Vec3::from_array).collect();
+        b.polygon(&verts, ccw, m, &t.origin(span, &format!("{what}.vertices")))?;
+    }
+    Ok(())
+}
+
+/// One `[[mesh]]`: an OBJ file, its MTL materials (named `file:name`)
+/// added to the scene's when asked for.
+fn mesh(
+    t: &Toml,
+    i: usize,
+    m: &MeshFile,
+    names: &Names,
+    b: &mut SceneBuilder,
+) -> Result<(), SceneError> {
+    let what = format!("mesh[{i}]");
+    let transform = transform(t, &what, &m.scale, &m.rotate_deg, &m.translate)?;
+    let ccw = front_face(t, m.front_face.as_ref(), &format!("{what}.front_face"))?;
+    let place = Placement::new(transform, ccw);
+    let fallback = m
+        .material
+        .as_ref()
+        .map(|n| names.get(t, n, &format!("{what}.material")))
+        .transpose()?;
+    let with_mtl = m.mtl.as_ref().is_some_and(|b| *b.get_ref());
+    let at = t.origin(m.file.span(), &what);
+    if fallback.is_none() && !with_mtl {
+        return Err(at.error(
+            "give a `material`, or `mtl = true` to take materials from the OBJ's MTL files",
+        ));
+    }
+    let path = t.base().join(m.file.get_ref());
+    let obj = super::obj::load(&path, with_mtl).map_err(|e| SceneError {
+        mesh: Some(Box::new(e.clone())),
+        file: e.file.display().to_string(),
+        line: e.line,
+        column: if e.line > 0 { 1 } else { 0 },
+        field: None,
+        message: format!(
+            "{} (the mesh of {what}, {}:{}:{})",
+            e.message, at.file, at.line, at.column
+        ),
+    })?;
+    b.source(&path);
+    b.room_for(obj.triangles.len() as u64, "mesh", &at)?;
+    let mtl_index: Vec<u32> = (obj.materials.iter())
+        .map(|om| {
+            let name = format!("{}:{}", m.file.get_ref(), om.name);
+            b.material(Material::diffuse(&name, om.diffuse, om.emission))
+        })
+        .collect();
+    let faces = obj.triangles.iter().zip(&obj.material).zip(&obj.normals);
+    for ((tri, mat), normals) in faces {
+        let mat = mat.map(|k| mtl_index[k]).or(fallback).ok_or_else(|| {
+            at.error(format!(
+                "{}: some faces have no material (no `usemtl`, or one its MTL files \
+                 do not define) and the mesh gives no fallback `material`",
+                path.display()
+            ))
+        })?;
+        b.soup_triangle(*tri, *normals, mat, &place, &at)?;
+    }
+    Ok(())
+}
+
+/// One `[[generate]]` entry: a mesh made here.
+fn generate(
+    t: &Toml,
+    i: usize,
+    g: &GenerateFile,
+    names: &Names,
+    b: &mut SceneBuilder,
+) -> Result<(), SceneError> {
+    let what = format!("generate[{i}]");
+    let mat = names.get(t, &g.material, &format!("{what}.material"))?;
+    let n = *g.triangles.get_ref();
+    let count = t.origin(g.triangles.span(), &format!("{what}.triangles"));
+    if n == 0 || n > MAX_GENERATED_TRIANGLES {
+        return Err(count.error(format!("must be between 1 and {MAX_GENERATED_TRIANGLES}")));
+    }
+    b.room_for(n, "entry", &count)?;
+    let place = Placement::new(
+        transform(t, &what, &g.scale, &g.rotate_deg, &g.translate)?,
+        true,
+    );
+    let center = match &g.center {
+        Some(c) => t.vec(c, &format!("{what}.center"))?,
+        None => Vec3::ZERO,
+    };
+    let tris = generated(t, &what, g, center, n as usize)?;
+    let at = t.origin(g.kind.span(), &what);
+    for tri in tris {
+        b.soup_triangle(tri, None, mat, &place, &at)?;
+    }
+    Ok(())
+}
+
+/// The triangles of `[[generate]]` entry `g` (called `what`): at least
+/// `n`, of its kind, around `center`.
+fn generated(
+    t: &Toml,
+    what: &str,
+    g: &GenerateFile,
+    center: Vec3,
+    n: usize,
+) -> Result<Vec<[Vec3; 3]>, SceneError> {
+    let positive = |v: &Option<Spanned<f32>>, field: &str, default: f32, zero_ok: bool| match v {
+        None => Ok(default),
+        Some(s) => {
+            let x = *s.get_ref();
+            if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) {
+                Ok(x)
+            } else {
+                let field = format!("{what}.{field}");
+                Err(t.err(s.span(), &field, "must be a positive number"))
+            }
+        }
+    };
+    // A field the kind does not read is refused, not ignored.
+    let unused = |span: Option<Range<usize>>, field: &str| match span {
+        Some(span) => Err(t.err(
+            span,
+            &format!("{what}.{field}"),
+            format!("`{field}` does not apply to kind {:?}", g.kind.get_ref()),
+        )),
+        None => Ok(()),
+    };
+    match g.kind.get_ref().as_str() {
+        "sphere" => {
+            unused(g.size.as_ref().map(|s| s.span()), "size")?;
+            unused(g.height.as_ref().map(|s| s.span()), "height")?;
+            unused(g.seed.as_ref().map(|s| s.span()), "seed")?;
+            let radius = positive(&g.radius, "radius", 1.0, false)?;
+            Ok(super::mesh::geodesic_sphere(center, radius, n))
+        }
+        "terrain" => {
+            unused(g.radius.as_ref().map(|s| s.span()), "radius")?;
+            let size = match &g.size {
+                None => [1.0, 1.0],
+                Some(s) => {
+                    let v = s.get_ref().0;
+                    if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+                        let field = format!("{what}.size");
+                        return Err(t.err(s.span(), &field, "must be two positive numbers"));
+                    }
+                    v
+                }
+            };
+            let height = positive(&g.height, "height", 0.1, true)?;
+            let seed = g.seed.as_ref().map_or(0, |s| *s.get_ref());
+            Ok(super::mesh::terrain(center, size, height, n, seed))
+        }
+        other => Err(t.err(
+            g.kind.span(),
+            &format!("{what}.kind"),
+            format!("unknown kind {other:?} (known: \"sphere\", \"terrain\")"),
+        )),
+    }
+}
+
+/// One `[[sphere]]`.
+fn sphere(
+    t: &Toml,
+    i: usize,
+    sp: &SphereFile,
+    names: &Names,
+    b: &mut SceneBuilder,
+) -> Result<(), SceneError> {
+    let what = format!("sphere[{i}]");
+    let center = t.vec(&sp.center, &format!("{what}.center"))?;
+    let radius = *sp.radius.get_ref();
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(t.err(
+            sp.radius.span(),
+            &format!("{what}.radius"),
+            "must be a positive, finite number",
+        ));
+    }
+    let material = names.get(t, &sp.material, &format!("{what}.material"))?;
+    b.sphere(center, radius, material);
+    Ok(())
+}
+
+/// The `[integrator]` table: the maximum depth and the other options.
+fn integrator(t: &Toml, raw: &IntegratorFile) -> Result<(u32, RenderOptions), SceneError> {
+    let max_depth = *raw.max_depth.get_ref();
     if max_depth == 0 {
-        return Err(at(
-            raw.integrator.max_depth.span(),
+        return Err(t.err(
+            raw.max_depth.span(),
             "integrator.max_depth",
-            "must be at least 1".into(),
+            "must be at least 1",
         ));
     }
     let named = |v: &Option<Spanned<String>>, field: &str, known: &[&str]| match v {
-        Some(n) if !known.contains(&n.get_ref().as_str()) => Err(at(
+        Some(n) if !known.contains(&n.get_ref().as_str()) => Err(t.err(
             n.span(),
             field,
             format!(
@@ -824,55 +806,32 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         )),
         _ => Ok(v.as_ref().map(|n| n.get_ref().clone())),
     };
-    let integrator = named(&raw.integrator.name, "integrator.name", Integrator::NAMES)?;
-    let sampler = named(
-        &raw.integrator.sampler,
-        "integrator.sampler",
-        SamplerKind::NAMES,
-    )?;
-    let aov = match &raw.integrator.aov {
+    let integrator = named(&raw.name, "integrator.name", Integrator::NAMES)?;
+    let sampler = named(&raw.sampler, "integrator.sampler", SamplerKind::NAMES)?;
+    let aov = match &raw.aov {
         Some(list) => Some(
             AovSet::from_names(list.get_ref().iter().map(String::as_str))
-                .map_err(|message| at(list.span(), "integrator.aov", message))?,
+                .map_err(|message| t.err(list.span(), "integrator.aov", message))?,
         ),
         None => None,
     };
     let options = RenderOptions {
         integrator: integrator.and_then(|n| Integrator::from_name(&n)),
         sampler: sampler.and_then(|n| SamplerKind::from_name(&n)),
-        rr_depth: raw.integrator.rr_depth.as_ref().map(|d| *d.get_ref()),
+        rr_depth: raw.rr_depth.as_ref().map(|d| *d.get_ref()),
         aov,
     };
-    Ok(Scene {
-        name: raw.name.unwrap_or_else(|| {
-            std::path::Path::new(file)
-                .file_stem()
-                .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
-        }),
-        camera,
-        materials,
-        vertex_normals: if vertex_normals.is_empty() {
-            vertex_normals
-        } else {
-            let mut v = vertex_normals;
-            v.resize(triangles.len(), [Vec3::ZERO; 3]);
-            v
-        },
-        triangles,
-        texturing: Default::default(),
-        spheres,
-        max_depth,
-        options,
-    })
+    Ok((max_depth, options))
 }
 
-/// Scale, then rotate (about x, then y, then z, in degrees), then translate.
+/// Scale, then rotate (about x, then y, then z, in degrees), then
+/// translate; `what` names the entry.
 fn transform(
-    at: &impl Fn(std::ops::Range<usize>, &str, String) -> SceneError,
+    t: &Toml,
     what: &str,
-    scale: Option<&Spanned<ScaleFile>>,
-    rotate_deg: Option<&Spanned<Exact<[f32; 3]>>>,
-    translate: Option<&Spanned<Exact<[f32; 3]>>>,
+    scale: &Option<Spanned<ScaleFile>>,
+    rotate_deg: &Option<Spanned<Exact<[f32; 3]>>>,
+    translate: &Option<Spanned<Exact<[f32; 3]>>>,
 ) -> Result<glam::Affine3A, SceneError> {
     let s = match scale {
         None => Vec3::ONE,
@@ -882,30 +841,18 @@ fn transform(
                 ScaleFile::PerAxis(v) => Vec3::from_array(v.0),
             };
             if !v.is_finite() || v.x * v.y * v.z == 0.0 {
-                return Err(at(
-                    s.span(),
-                    &format!("{what}.scale"),
-                    "must be finite and non-zero".into(),
-                ));
+                let field = format!("{what}.scale");
+                return Err(t.err(s.span(), &field, "must be finite and non-zero"));
             }
             v
         }
     };
-    let finite = |v: Option<&Spanned<Exact<[f32; 3]>>>, field: &str| -> Result<Vec3, SceneError> {
-        match v {
-            None => Ok(Vec3::ZERO),
-            Some(v) if Vec3::from_array(v.get_ref().0).is_finite() => {
-                Ok(Vec3::from_array(v.get_ref().0))
-            }
-            Some(v) => Err(at(
-                v.span(),
-                &format!("{what}.{field}"),
-                "must be finite numbers".into(),
-            )),
-        }
+    let finite = |v: &Option<Spanned<Exact<[f32; 3]>>>, field: &str| match v {
+        None => Ok(Vec3::ZERO),
+        Some(v) => t.vec(v, &format!("{what}.{field}")),
     };
     let r = finite(rotate_deg, "rotate_deg")?;
-    let t = finite(translate, "translate")?;
+    let tr = finite(translate, "translate")?;
     let rotation = glam::Quat::from_euler(
         glam::EulerRot::ZYX,
         r.z.to_radians(),
@@ -913,55 +860,8 @@ fn transform(
         r.x.to_radians(),
     );
     Ok(glam::Affine3A::from_scale_rotation_translation(
-        s, rotation, t,
+        s, rotation, tr,
     ))
-}
-
-/// A mesh's `front_face` (counter-clockwise unless it says otherwise).
-fn mesh_front_face(
-    at: &impl Fn(std::ops::Range<usize>, &str, String) -> SceneError,
-    what: &str,
-    front_face: Option<&Spanned<String>>,
-) -> Result<bool, SceneError> {
-    match front_face.map(|s| (s, s.get_ref().as_str())) {
-        None | Some((_, "counterclockwise")) => Ok(true),
-        Some((_, "clockwise")) => Ok(false),
-        Some((s, other)) => Err(at(
-            s.span(),
-            &format!("{what}.front_face"),
-            format!("must be \"counterclockwise\" or \"clockwise\", not {other:?}"),
-        )),
-    }
-}
-
-/// Transform a mesh triangle and add it, unless it has no area (skipped:
-/// it could never be hit). A mirroring transform swaps the winding, so the
-/// front stays the same side of the surface. A vertex the transform makes
-/// infinite or NaN is an error, which the caller places in the file.
-fn push_mesh_triangle(
-    out: &mut Vec<Triangle>,
-    transform: &glam::Affine3A,
-    ccw: bool,
-    v: [Vec3; 3],
-    material: u32,
-) -> Result<(), String> {
-    let p = v.map(|p| transform.transform_point3(p));
-    if let Some(q) = p.iter().find(|q| !q.is_finite()) {
-        return Err(format!(
-            "the transform (scale, rotate_deg, translate) turns a vertex into {q}: \
-             the coordinates overflow f32"
-        ));
-    }
-    let mirrored = transform.matrix3.determinant() < 0.0;
-    let t = if ccw != mirrored {
-        Triangle::ccw(p, material)
-    } else {
-        Triangle::cw(p, material)
-    };
-    if t.normal != Vec3::ZERO {
-        out.push(t);
-    }
-    Ok(())
 }
 
 /// 1-based line and column of byte `offset` in `text`.

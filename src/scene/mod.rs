@@ -5,6 +5,7 @@
 
 pub mod asset;
 pub mod asset_scene;
+pub mod builder;
 pub mod camera;
 pub mod file;
 pub mod format;
@@ -12,6 +13,7 @@ pub mod gltf;
 pub mod light_check;
 pub mod material;
 pub mod mesh;
+pub mod mesh_source;
 pub mod obj;
 pub mod options;
 pub mod ply;
@@ -20,7 +22,7 @@ pub mod texture;
 use camera::Camera;
 use glam::Vec3;
 
-pub use file::SceneError;
+pub use builder::{Origin, SceneBuilder, SceneError};
 pub use light_check::LightWarning;
 pub use material::{Material, Model};
 pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
@@ -214,6 +216,10 @@ pub struct Scene {
     pub max_depth: u32,
     /// What the scene's `[integrator]` table asks for besides the depth.
     pub options: RenderOptions,
+    /// The files the scene was read from (its scene file, meshes and
+    /// assets), in the order they were read; empty for text parsed from
+    /// memory. Outputs must never be written over one of them.
+    pub sources: Vec<std::path::PathBuf>,
 }
 
 impl Scene {
@@ -233,7 +239,9 @@ impl Scene {
             field: None,
             message: format!("cannot read the scene file: {e}"),
         })?;
-        file::parse(&text, &path.display().to_string())
+        let mut scene = file::parse(&text, &path.display().to_string())?;
+        scene.sources.insert(0, path.to_path_buf());
+        Ok(scene)
     }
 
     /// The largest absolute coordinate of any vertex (at least 1).

@@ -187,6 +187,80 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
     Ok(mesh)
 }
 
+/// Reads the OBJ at `path` with its MTL materials as an [`Asset`](super::asset::Asset) (the
+/// mesh-source seam's form; `[[asset]] file = "x.obj"`): one mesh per
+/// material, its triangles' corners unshared, each material diffuse
+/// (metallic 0, roughness 1) of base colour `Kd` and emission `Ke`; faces
+/// without a material take the asset's default one. Corners of faces
+/// without `vn` get zero normals (flat) in a mesh where others have them.
+pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::AssetError> {
+    use super::asset::{Asset, AssetError, AssetMesh, Instance, PbrMaterial};
+    let obj = load(path, true).map_err(|e| {
+        let at = if e.line > 0 {
+            format!("line {}", e.line)
+        } else {
+            String::new()
+        };
+        AssetError::new(&e.file.display().to_string(), at, e.message)
+    })?;
+    let file = path.display().to_string();
+    let mut meshes: Vec<AssetMesh> = Vec::new();
+    let mut mesh_of: Vec<Option<usize>> = vec![None; obj.materials.len() + 1];
+    let faces = obj.triangles.iter().zip(&obj.material).zip(&obj.normals);
+    for ((tri, mat), normals) in faces {
+        let slot = mat.unwrap_or(obj.materials.len());
+        let k = *mesh_of[slot].get_or_insert_with(|| {
+            meshes.push(AssetMesh {
+                name: format!("{file} material {slot}"),
+                material: mat.map(|m| m as u32),
+                ..AssetMesh::default()
+            });
+            meshes.len() - 1
+        });
+        let m = &mut meshes[k];
+        let base = m.positions.len() as u32;
+        m.positions.extend(tri);
+        m.triangles.push([base, base + 1, base + 2]);
+        match normals {
+            Some(n) => {
+                m.normals.resize(base as usize, Vec3::ZERO);
+                m.normals.extend(n);
+            }
+            None if !m.normals.is_empty() => m.normals.extend([Vec3::ZERO; 3]),
+            None => {}
+        }
+    }
+    for m in &mut meshes {
+        if !m.normals.is_empty() {
+            m.normals.resize(m.positions.len(), Vec3::ZERO);
+        }
+    }
+    let materials = obj
+        .materials
+        .iter()
+        .map(|m| PbrMaterial {
+            name: m.name.clone(),
+            base_colour: [m.diffuse.x, m.diffuse.y, m.diffuse.z, 1.0],
+            metallic: 0.0,
+            roughness: 1.0,
+            emissive: m.emission.to_array(),
+            ..PbrMaterial::default()
+        })
+        .collect();
+    let instances = (0..meshes.len() as u32)
+        .map(|mesh| Instance {
+            mesh,
+            transform: glam::Mat4::IDENTITY,
+        })
+        .collect();
+    Ok(Asset {
+        meshes,
+        instances,
+        materials,
+        ..Asset::default()
+    })
+}
+
 /// Blank the polylines (`l`) and points (`p`) of an OBJ file, keeping its
 /// newlines (and so its line numbers): they have no area, and `tobj`
 /// reads a polyline of three vertices or more as a face.
