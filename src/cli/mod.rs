@@ -3,6 +3,7 @@
 mod bench;
 mod converge;
 mod denoise;
+mod light;
 mod merge;
 pub(crate) mod profile;
 pub(crate) mod progress;

@@ -120,6 +120,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Time")]
     pub write_partial: Option<Duration>,
 
+    /// Lighting: an environment for any scene.
+    #[command(flatten)]
+    pub light: super::light::LightArgs,
+
     /// Farm options: sample ranges, shards, partial files.
     #[command(flatten)]
     pub farm: FarmArgs,
@@ -242,7 +246,7 @@ struct Job {
 }
 
 fn plan(args: RenderArgs) -> Result<Job> {
-    let scene = match &args.scene {
+    let mut scene = match &args.scene {
         Some(path) => crate::cli::load_scene(path, args.camera.as_deref())?,
         None if args.camera.is_some() => {
             return Err(Error::Settings(
@@ -251,6 +255,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
         }
         None => Scene::cornell(),
     };
+    args.light.apply(&mut scene)?;
     let profile = match &args.profile {
         Some(name) => Profile::load(name)?,
         None => Profile::default(),

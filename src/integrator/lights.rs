@@ -17,7 +17,15 @@
 //! back to `x`, it is `P(emitter) / area · r² / cos θ_l` per unit solid
 //! angle. A point sampled by solid angle has density `P(emitter) / Ω`,
 //! `Ω` the rectangle's solid angle at `x`.
+//!
+//! A scene's environment ([`EnvLight`]) is one more emitter, last in the
+//! running sums, of power `4π r² × mean radiance` (`r` the radius of the
+//! scene's bounding sphere: the power it sends through that sphere, over
+//! `π` as for the other emitters); a direction drawn from it has density
+//! `P(environment) × p(direction)` per unit solid angle. Scenes without
+//! one sample exactly as before.
 
+use super::environment::EnvLight;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use wide::f32x8;
@@ -39,6 +47,14 @@ pub struct Lights {
     has_spheres: bool,
     /// Whether some emitters are rectangles (sampled by solid angle).
     has_rectangles: bool,
+    /// The scene's environment, if it has one.
+    environment: Option<EnvLight>,
+    /// The probability that the environment is picked (0: it is black,
+    /// or there is none; then `cdf` has no entry for it).
+    environment_probability: f32,
+    /// A distance from any point of the scene to beyond its bounds: a
+    /// direction drawn from the environment is a point this far away.
+    far: f32,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, a
@@ -459,7 +475,21 @@ impl Lights {
             });
             shapes.push(([Some(prim), None], power, area));
         }
-        let total: f64 = shapes.iter().map(|s| s.1).sum();
+        let mut total: f64 = shapes.iter().map(|s| s.1).sum();
+        let (lo, hi) = scene_bounds(scene);
+        let largest = lo.abs().max(hi.abs()).max_element();
+        lights.far = 4.0 * 3f32.sqrt() * largest + 1.0;
+        let mut environment_power = 0.0;
+        if let Some(env) = &scene.environment {
+            let env = EnvLight::new(env);
+            if !env.is_black() {
+                let r = 0.5 * f64::from((hi - lo).length()).max(1e-3);
+                environment_power = 4.0 * std::f64::consts::PI * r * r * env.mean_radiance;
+                environment_power = environment_power.max(f64::MIN_POSITIVE);
+                total += environment_power;
+            }
+            lights.environment = Some(env);
+        }
         let mut sum = 0.0;
         for (k, (prims, power, area)) in shapes.iter().enumerate() {
             sum += power;
@@ -470,27 +500,114 @@ impl Lights {
                 lights.emitter_of[*prim as usize] = k as u32;
             }
         }
+        if environment_power > 0.0 {
+            lights.cdf.push(1.0);
+            lights.environment_probability = (environment_power / total) as f32;
+        }
         if let Some(last) = lights.cdf.last_mut() {
             *last = 1.0;
         }
         lights
     }
 
+    /// The scene's environment, if it has one.
+    #[inline]
+    pub fn environment(&self) -> Option<&EnvLight> {
+        self.environment.as_ref()
+    }
+
+    /// The density per unit solid angle with which [`Lights::sample`]
+    /// draws the direction `d` from the environment (0 without one).
+    #[inline]
+    pub fn environment_pdf(&self, d: V3<f32>) -> f32 {
+        match &self.environment {
+            Some(env) if self.environment_probability > 0.0 => {
+                self.environment_probability * env.pdf(d)
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// [`Lights::sample`] in a scene with an environment `env`: the
+    /// running sums pick an emitter or, past the last emitter, the
+    /// environment, whose direction becomes a point [`Lights::far`] away
+    /// facing back (its density is by solid angle).
+    fn sample_with_environment(&self, env: &EnvLight, o: V3<f32>, u: [f32; 2]) -> LightPoint<f32> {
+        let n = self.emitters.len();
+        let k = self
+            .cdf
+            .partition_point(|&c| c <= u[0])
+            .min(self.cdf.len() - 1);
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let u0 = ((u[0] - lo) / (self.cdf[k] - lo)).clamp(0.0, ONE_MINUS_EPSILON);
+        if k < n {
+            return self.point_on(&self.emitters[k], o, [u0, u[1]]);
+        }
+        match env.sample([u0, u[1]]) {
+            Some(s) => LightPoint {
+                point: s.dir.mul_add(self.far, o),
+                normal: -s.dir,
+                emission: s.radiance,
+                pdf_area: 0.0,
+                pdf_solid_angle: self.environment_probability * s.pdf,
+                scale: 0.0,
+            },
+            None => LightPoint::on_by_area(&Emitter::NONE, u),
+        }
+    }
+
+    /// [`Lights::sample`] for up to eight shading points `o` and numbers
+    /// `u`, one per lane (lanes past `lanes` get a point that carries no
+    /// light): [`pick_8`](Self::pick_8) and [`point_on`](Self::point_on)
+    /// where the scene has no environment, else [`Lights::sample`] lane by
+    /// lane (the same bits).
+    #[inline(always)]
+    pub fn sample_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
+        if self.environment_probability == 0.0 {
+            let (emitters, u0) = self.pick_8(u[0], lanes);
+            return self.point_on(&emitters, o, [u0, u[1]]);
+        }
+        let none = LightPoint::on_by_area(&Emitter::NONE, [0.0, 0.0]);
+        let (ox, oy, oz) = (o.x.to_array(), o.y.to_array(), o.z.to_array());
+        let (u0, u1) = (u[0].to_array(), u[1].to_array());
+        let points: [LightPoint<f32>; 8] = std::array::from_fn(|l| {
+            if l < lanes {
+                self.sample(V3::new(ox[l], oy[l], oz[l]), [u0[l], u1[l]])
+                    .unwrap_or(none)
+            } else {
+                none
+            }
+        });
+        let lane = |f: &dyn Fn(&LightPoint<f32>) -> f32| f32x8::from(points.each_ref().map(f));
+        let lane3 = |f: &dyn Fn(&LightPoint<f32>) -> V3<f32>| {
+            V3::new(lane(&|p| f(p).x), lane(&|p| f(p).y), lane(&|p| f(p).z))
+        };
+        LightPoint {
+            point: lane3(&|p| p.point),
+            normal: lane3(&|p| p.normal),
+            emission: lane3(&|p| p.emission),
+            pdf_area: lane(&|p| p.pdf_area),
+            pdf_solid_angle: lane(&|p| p.pdf_solid_angle),
+            scale: lane(&|p| p.scale),
+        }
+    }
+
     /// The emitter of a one-emitter scene, if it has exactly one.
     #[inline]
     pub fn single(&self) -> Option<&Emitter> {
         match self.emitters.as_slice() {
-            [e] => Some(e),
+            [e] if self.environment_probability == 0.0 => Some(e),
             _ => None,
         }
     }
 
-    /// Whether the scene has no emitter.
+    /// Whether the scene has nothing to sample: no emitter, no
+    /// environment with light.
     pub fn is_empty(&self) -> bool {
-        self.triangle.is_empty()
+        self.triangle.is_empty() && self.environment_probability == 0.0
     }
 
-    /// Number of emitters.
+    /// Number of emitters (not counting an environment).
     pub fn len(&self) -> usize {
         self.triangle.len()
     }
@@ -522,6 +639,11 @@ impl Lights {
     pub fn sample(&self, o: V3<f32>, u: [f32; 2]) -> Option<LightPoint<f32>> {
         if self.is_empty() {
             return None;
+        }
+        if let Some(env) = &self.environment
+            && self.environment_probability > 0.0
+        {
+            return Some(self.sample_with_environment(env, o, u));
         }
         let (emitter, u0) = self.pick(u[0]);
         Some(self.point_on(emitter, o, [u0, u[1]]))
@@ -589,6 +711,29 @@ impl Lights {
             by_area
         }
     }
+}
+
+/// The corners of the box around the scene's triangles and spheres (the
+/// origin alone for an empty scene).
+fn scene_bounds(scene: &Scene) -> (glam::Vec3, glam::Vec3) {
+    let (mut lo, mut hi) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
+    let mut first = true;
+    let mut add = |a: glam::Vec3, b: glam::Vec3| {
+        if first {
+            (lo, hi, first) = (a, b, false);
+        } else {
+            (lo, hi) = (lo.min(a), hi.max(b));
+        }
+    };
+    for t in &scene.triangles {
+        for v in t.v {
+            add(v, v);
+        }
+    }
+    for s in &scene.spheres {
+        add(s.center - s.radius, s.center + s.radius);
+    }
+    (lo, hi)
 }
 
 /// Barycentric coordinates `(b1, b2)` (weights of vertices 1 and 2) of a

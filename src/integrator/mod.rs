@@ -20,6 +20,7 @@
 
 pub mod aov;
 pub mod bsdf;
+pub mod environment;
 pub mod lights;
 pub mod nee;
 pub mod offset;

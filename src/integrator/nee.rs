@@ -263,6 +263,31 @@ pub fn emission_weight(
     power_heuristic(bsdf_pdf, pdf_light)
 }
 
+/// The radiance a ray of direction `d` that left the scene brings back:
+/// the environment's (`None` without one, or for a camera ray — `camera`
+/// — when the environment is not visible), weighted, when the estimator
+/// samples lights and the ray was drawn with density `bsdf_pdf > 0`,
+/// against the environment's own sampling by the power heuristic.
+#[inline]
+pub fn escaped(
+    estimator: &Estimator,
+    lights: &Lights,
+    bsdf_pdf: f32,
+    d: V3<f32>,
+    camera: bool,
+) -> Option<V3<f32>> {
+    let env = lights.environment()?;
+    if camera && !env.visible {
+        return None;
+    }
+    let l = env.radiance(d);
+    if !estimator.samples_lights() || bsdf_pdf == 0.0 {
+        return Some(l);
+    }
+    let w = power_heuristic(bsdf_pdf, lights.environment_pdf(d));
+    Some(V3::new(l.x * w, l.y * w, l.z * w))
+}
+
 /// The probability that Russian roulette lets a path of throughput `beta`
 /// go on: its largest component, at most 1.
 #[inline]

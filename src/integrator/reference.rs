@@ -31,7 +31,9 @@ use crate::accel::triangle::{Hit, TriangleEdges};
 use crate::film::{AovSample, accumulate};
 use crate::integrator::bsdf::Surface;
 use crate::integrator::lights::Lights;
-use crate::integrator::nee::{Estimator, connect_shaded, emission_weight, survival as survival_of};
+use crate::integrator::nee::{
+    Estimator, connect_shaded, emission_weight, escaped, survival as survival_of,
+};
 use crate::integrator::offset::spawn;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
@@ -181,7 +183,8 @@ impl ReferenceTracer {
         }
         counters.rays += 1;
         let Some(hit) = self.closest_hit(o, d) else {
-            return Vec3::ZERO;
+            let seen = escaped(est, &self.lights, bsdf_pdf, V3::from(d), depth == 0);
+            return seen.map_or(Vec3::ZERO, Vec3::from);
         };
         // The surface, once: seen from the front it emits; either side
         // reflects.

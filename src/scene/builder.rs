@@ -170,6 +170,7 @@ pub struct SceneBuilder {
     max_depth: u32,
     options: RenderOptions,
     sources: Vec<PathBuf>,
+    environment: Option<super::environment::Environment>,
 }
 
 impl SceneBuilder {
@@ -187,6 +188,7 @@ impl SceneBuilder {
             max_depth: 1,
             options: RenderOptions::default(),
             sources: Vec::new(),
+            environment: None,
         }
     }
 
@@ -225,6 +227,15 @@ impl SceneBuilder {
     pub fn settings(&mut self, max_depth: u32, options: RenderOptions) {
         self.max_depth = max_depth;
         self.options = options;
+    }
+
+    /// The environment (`None`: rays that leave the scene see black); its
+    /// image file, if any, is one of the scene's sources.
+    pub fn environment(&mut self, env: Option<super::environment::Environment>) {
+        if let Some(path) = env.as_ref().and_then(|e| e.file.clone()) {
+            self.source(&path);
+        }
+        self.environment = env;
     }
 
     /// Records that the scene was read from the file at `path`.
@@ -458,6 +469,7 @@ impl SceneBuilder {
             max_depth: self.max_depth,
             options: self.options,
             sources: self.sources,
+            environment: self.environment,
         })
     }
 }

@@ -35,6 +35,7 @@ struct SceneFile {
     meshes: Vec<Spanned<MeshFile>>,
     #[serde(default, rename = "generate")]
     generated: Vec<Spanned<GenerateFile>>,
+    environment: Option<Spanned<super::environment::EnvironmentFile>>,
 }
 
 /// A TOML array of exactly `N` elements: serde's arrays read the first `N`
@@ -251,6 +252,11 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     }
     let (max_depth, options) = integrator(&t, &raw.integrator)?;
     b.settings(max_depth, options);
+    b.environment(super::environment::from_file(
+        raw.environment.as_ref(),
+        text,
+        file,
+    )?);
     b.finish(&whole)
 }
 
@@ -865,7 +871,7 @@ fn transform(
 }
 
 /// 1-based line and column of byte `offset` in `text`.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

@@ -48,6 +48,13 @@ impl Scene {
     /// of another primitive strictly in front of an emitting triangle's
     /// plane; some point of another primitive outside an emitting sphere).
     pub fn light_warning(&self) -> Option<LightWarning> {
+        // An environment with light lights every surface it can see.
+        if let Some(env) = &self.environment
+            && env.strength > 0.0
+            && env.texels.iter().flatten().any(|&c| c > 0.0)
+        {
+            return None;
+        }
         let emits = |m: u32| self.materials[m as usize].is_emissive();
         let triangles: Vec<usize> = (0..self.triangles.len())
             .filter(|&i| emits(self.triangles[i].material))

@@ -7,6 +7,7 @@ pub mod asset;
 pub mod asset_scene;
 pub mod builder;
 pub mod camera;
+pub mod environment;
 pub mod file;
 pub mod format;
 pub mod gltf;
@@ -220,6 +221,9 @@ pub struct Scene {
     /// assets), in the order they were read; empty for text parsed from
     /// memory. Outputs must never be written over one of them.
     pub sources: Vec<std::path::PathBuf>,
+    /// The light from infinitely far away that rays leaving the scene see
+    /// (`None`: they see black).
+    pub environment: Option<environment::Environment>,
 }
 
 impl Scene {
@@ -348,6 +352,10 @@ impl Scene {
         for s in &self.spheres {
             put(s.center);
             put(Vec3::new(s.radius, s.material as f32, -1.0));
+        }
+        // (Scenes without an environment hash as before it existed.)
+        if let Some(e) = &self.environment {
+            e.hash_into(&mut h);
         }
         h.digest128()
     }

@@ -62,8 +62,7 @@ fn sample_lights_8<S: Sampler>(
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
     let s = tables.surface_8(&tris, (o, d), t);
-    let (emitters, u0) = lights.pick_8(u0, lanes);
-    let light = lights.point_on(&emitters, s.p, [u0, u1]);
+    let light = lights.sample_8(s.p, [u0, u1], lanes);
     let surface = tables.surfaces(model, &tris);
     let (valid, ray) = if tables.has_smooth() {
         connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), &surface)

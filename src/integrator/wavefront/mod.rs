@@ -168,6 +168,9 @@ impl WavefrontEngine {
             time.time(Stage::Intersect, || intersect::intersect(queue, &ctx));
             time.time(Stage::Shade, || {
                 shade::shade(queue, &ctx);
+                if ctx.lights.environment().is_some() {
+                    shade::shade_escaped(queue, &ctx, depth);
+                }
                 shade::record_aovs(queue, ctx.tables, depth);
             });
             counters.invalid_samples += time.time(Stage::Retire, || {

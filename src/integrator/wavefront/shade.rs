@@ -2,7 +2,7 @@
 
 use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
-use crate::integrator::nee::emission_weight;
+use crate::integrator::nee::{emission_weight, escaped};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::math::V3;
@@ -32,6 +32,27 @@ pub fn shade<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
             lr[i] += beta[0][i] * (e[0] * w);
             lg[i] += beta[1][i] * (e[1] * w);
             lb[i] += beta[2][i] * (e[2] * w);
+        }
+    }
+}
+
+/// For every path whose ray left the scene, in a scene with an
+/// environment: radiance += throughput × the environment's radiance ×
+/// its MIS weight ([`escaped`]); camera rays (depth `depth` 0) see it only
+/// where it is visible.
+pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, depth: u32) {
+    let n = queue.len();
+    let hit = &queue.hit[..n];
+    let pdf = &queue.pdf[..n];
+    let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
+    let beta = queue.beta.each_ref().map(|c| &c[..n]);
+    let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
+    for i in rows_where(hit, |&h| h == NO_HIT) {
+        let d = V3::new(dx[i], dy[i], dz[i]);
+        if let Some(l) = escaped(ctx.est, ctx.lights, pdf[i], d, depth == 0) {
+            lr[i] += beta[0][i] * l.x;
+            lg[i] += beta[1][i] * l.y;
+            lb[i] += beta[2][i] * l.z;
         }
     }
 }

@@ -1,0 +1,74 @@
+//! The render command's lighting flags: an environment for any scene.
+
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+use crate::scene::environment::{EnvSource, Environment};
+use clap::Args;
+
+/// `--env`, `--env-strength`, `--env-rotation` (docs/lights.md).
+#[derive(Debug, Default, Args)]
+pub struct LightArgs {
+    /// Light the scene with an environment: an equirectangular .exr/.hdr/.pfm image, or a colour R,G,B.
+    #[arg(long, value_name = "FILE|R,G,B", help_heading = "Lighting")]
+    pub env: Option<String>,
+    /// Scale the environment's radiance [default: the scene's, else 1].
+    #[arg(
+        long,
+        value_name = "S",
+        allow_negative_numbers = true,
+        help_heading = "Lighting"
+    )]
+    pub env_strength: Option<f32>,
+    /// Turn the environment about +Y, right-handed, in degrees [default: the scene's, else 0].
+    #[arg(
+        long,
+        value_name = "DEG",
+        allow_negative_numbers = true,
+        help_heading = "Lighting"
+    )]
+    pub env_rotation: Option<f32>,
+}
+
+impl LightArgs {
+    /// Give `scene` the environment the flags ask for: `--env` replaces
+    /// the scene's (keeping its visibility); `--env-strength` and
+    /// `--env-rotation` alone change the scene's own, and are refused for
+    /// a scene without one.
+    pub fn apply(&self, scene: &mut Scene) -> Result<()> {
+        let settings = |m: String| Error::Settings(m);
+        let env = match (&self.env, &scene.environment) {
+            (Some(text), old) => Environment::load(
+                &EnvSource::parse(text),
+                self.env_strength.unwrap_or(1.0),
+                self.env_rotation.unwrap_or(0.0),
+                old.as_ref().is_none_or(|e| e.visible),
+            )
+            .map_err(settings)?,
+            (None, Some(old)) => Environment::load(
+                &EnvSource::Constant([0.0; 3]),
+                self.env_strength.unwrap_or(old.strength),
+                self.env_rotation.unwrap_or(old.rotation_deg),
+                old.visible,
+            )
+            .map(|checked| Environment {
+                strength: checked.strength,
+                rotation_deg: checked.rotation_deg,
+                ..old.clone()
+            })
+            .map_err(settings)?,
+            (None, None) if self.env_strength.is_some() || self.env_rotation.is_some() => {
+                return Err(settings(
+                    "--env-strength and --env-rotation change an environment: the scene has none; give one with --env".into(),
+                ));
+            }
+            (None, None) => return Ok(()),
+        };
+        if let Some(path) = &env.file
+            && !scene.sources.contains(path)
+        {
+            scene.sources.push(path.clone());
+        }
+        scene.environment = Some(env);
+        Ok(())
+    }
+}

@@ -1,0 +1,289 @@
+//! The environment: radiance arriving from infinitely far away, seen by
+//! every ray that leaves the scene. An equirectangular image (`.exr`,
+//! `.hdr` or `.pfm`) or one constant colour, scaled by a strength and
+//! turned about the up axis (docs/lights.md).
+//!
+//! The mapping is Blender's and three.js's, in +Y-up coordinates: a
+//! direction `d` looks up `u = ½ + atan2(d.z, d.x) / 2π`,
+//! `v = acos(d.y) / π`, `v = 0` the image's top row; texel `(i, j)` sits
+//! at `((i + ½) / W, (j + ½) / H)`, looked up bilinearly, wrapping in `u`
+//! and clamped in `v`. A rotation `R` (degrees) turns the content
+//! right-handed about +Y: what was seen in direction `d` is seen in
+//! `R_y(R)·d`. The integrator's side of it (lookup, importance sampling)
+//! is `crate::integrator::environment`.
+//!
+//! In a scene file:
+//!
+//! ```toml
+//! [environment]
+//! file = "sky.exr"        # or: color = [0.8, 0.9, 1.0]
+//! strength = 1.0          # radiance scale (default 1)
+//! rotation = 90.0         # degrees about +Y (default 0)
+//! visible = true          # false: camera rays that miss see alpha 0
+//! ```
+
+use super::SceneError;
+use glam::Vec3;
+use serde::Deserialize;
+use std::path::Path;
+use std::sync::Arc;
+use toml::Spanned;
+
+/// The most texels an environment image may have (a 16384×8192 image).
+pub const MAX_TEXELS: u64 = 1 << 27;
+
+/// An environment light: an equirectangular image and how it is seen.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Environment {
+    /// The image's texels, row-major, row 0 at the top (+Y), linear RGB
+    /// radiance (before `strength`).
+    pub texels: Arc<Vec<[f32; 3]>>,
+    /// Width in texels (`u`).
+    pub width: u32,
+    /// Height in texels (`v`).
+    pub height: u32,
+    /// The radiance scale.
+    pub strength: f32,
+    /// Degrees, right-handed about +Y.
+    pub rotation_deg: f32,
+    /// Whether camera rays that leave the scene see it (else they record
+    /// nothing: black, alpha 0).
+    pub visible: bool,
+    /// What it is, for messages: a file name or `constant (r, g, b)`.
+    pub source: String,
+    /// The image file it was read from (`None`: a constant colour).
+    pub file: Option<std::path::PathBuf>,
+}
+
+/// Where an environment's radiance comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvSource {
+    /// One colour from every direction.
+    Constant([f32; 3]),
+    /// An equirectangular image file.
+    File(std::path::PathBuf),
+}
+
+impl EnvSource {
+    /// `R,G,B` (three non-negative numbers) is a colour; anything else a
+    /// file name.
+    pub fn parse(text: &str) -> Self {
+        let parts: Vec<_> = text.split(',').map(|p| p.trim().parse::<f32>()).collect();
+        match parts.as_slice() {
+            [Ok(r), Ok(g), Ok(b)] => EnvSource::Constant([*r, *g, *b]),
+            _ => EnvSource::File(text.into()),
+        }
+    }
+}
+
+impl Environment {
+    /// The environment of `source`, scaled by `strength` and turned by
+    /// `rotation_deg`: an image file is read here. Errors name the file
+    /// and what is wrong.
+    pub fn load(
+        source: &EnvSource,
+        strength: f32,
+        rotation_deg: f32,
+        visible: bool,
+    ) -> Result<Self, String> {
+        if !(strength.is_finite() && strength >= 0.0) {
+            return Err(format!(
+                "the environment's strength must be a finite non-negative number, not {strength}"
+            ));
+        }
+        if !rotation_deg.is_finite() {
+            return Err(format!(
+                "the environment's rotation must be a finite number of degrees, not {rotation_deg}"
+            ));
+        }
+        let (texels, width, height, name, file) = match source {
+            EnvSource::Constant(c) => {
+                if !c.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                    return Err(format!(
+                        "the environment's colour must be finite and non-negative, not {c:?}"
+                    ));
+                }
+                (
+                    vec![*c],
+                    1,
+                    1,
+                    format!("constant ({}, {}, {})", c[0], c[1], c[2]),
+                    None,
+                )
+            }
+            EnvSource::File(path) => {
+                let (t, w, h) = read_image(path)?;
+                (t, w, h, path.display().to_string(), Some(path.clone()))
+            }
+        };
+        Ok(Self {
+            texels: Arc::new(texels),
+            width,
+            height,
+            strength,
+            rotation_deg,
+            visible,
+            source: name,
+            file,
+        })
+    }
+
+    /// Hash what changes an image: texels, size, strength, rotation and
+    /// visibility.
+    pub fn hash_into(&self, h: &mut xxhash_rust::xxh3::Xxh3) {
+        for t in self.texels.iter() {
+            for c in t {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        }
+        for x in [self.width, self.height, u32::from(self.visible)] {
+            h.update(&x.to_le_bytes());
+        }
+        for x in [self.strength, self.rotation_deg] {
+            h.update(&x.to_bits().to_le_bytes());
+        }
+    }
+}
+
+/// An equirectangular radiance image: `.exr` or `.pfm` (through
+/// [`crate::output::read_radiance`]) or Radiance `.hdr`; its texels (row 0
+/// at the top), width and height. NaN, infinite or negative texels are
+/// refused.
+fn read_image(path: &Path) -> Result<(Vec<[f32; 3]>, u32, u32), String> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("exr" | "pfm") => {
+            let image =
+                crate::output::read_radiance(path, "the environment").map_err(|e| e.to_string())?;
+            Ok((image.rgb, image.width, image.height))
+        }
+        Some("hdr") => read_hdr(path),
+        _ => Err(format!(
+            "{}: an environment is an equirectangular .exr, .hdr or .pfm image, or a colour R,G,B",
+            path.display()
+        )),
+    }
+}
+
+/// A Radiance `.hdr` (RGBE) image, its size checked before it is decoded.
+fn read_hdr(path: &Path) -> Result<(Vec<[f32; 3]>, u32, u32), String> {
+    use image::ImageDecoder;
+    let bad =
+        |e: &dyn std::fmt::Display| format!("{}: cannot read the HDR image: {e}", path.display());
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let decoder =
+        image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file)).map_err(|e| bad(&e))?;
+    let (width, height) = decoder.dimensions();
+    let texels = u64::from(width) * u64::from(height);
+    if texels == 0 || texels > MAX_TEXELS {
+        return Err(format!(
+            "{}: an environment image of {width}×{height} texels (at most {MAX_TEXELS}, at least 1)",
+            path.display()
+        ));
+    }
+    let image = image::DynamicImage::from_decoder(decoder).map_err(|e| bad(&e))?;
+    let rgb = image.into_rgb32f();
+    let texels: Vec<[f32; 3]> = rgb.pixels().map(|p| p.0).collect();
+    if let Some(i) = texels
+        .iter()
+        .position(|t| !t.iter().all(|c| c.is_finite() && *c >= 0.0))
+    {
+        let w = width as usize;
+        return Err(format!(
+            "{}: texel ({}, {}) is {:?}; an environment must be finite and non-negative",
+            path.display(),
+            i % w,
+            i / w,
+            texels[i]
+        ));
+    }
+    Ok((texels, width, height))
+}
+
+/// The `[environment]` table of a scene file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentFile {
+    file: Option<Spanned<String>>,
+    color: Option<Spanned<Vec<f32>>>,
+    strength: Option<Spanned<f32>>,
+    rotation: Option<Spanned<f32>>,
+    visible: Option<bool>,
+}
+
+/// The environment a scene file's `[environment]` table (`raw`, if any)
+/// asks for; a `file` is relative to the scene file `file`'s directory.
+/// `text` is the scene file's text, for the errors' lines.
+pub(super) fn from_file(
+    raw: Option<&Spanned<EnvironmentFile>>,
+    text: &str,
+    file: &str,
+) -> Result<Option<Environment>, SceneError> {
+    let Some(raw) = raw else {
+        return Ok(None);
+    };
+    let at = |span: std::ops::Range<usize>, field: &str, message: String| {
+        let (line, column) = super::file::line_col(text, span.start);
+        SceneError {
+            mesh: None,
+            file: file.to_string(),
+            line,
+            column,
+            field: Some(format!("environment.{field}")),
+            message,
+        }
+    };
+    let env = raw.get_ref();
+    let source = match (&env.file, &env.color) {
+        (Some(f), None) => {
+            let base = Path::new(file).parent().unwrap_or(Path::new(""));
+            (EnvSource::File(base.join(f.get_ref())), f.span(), "file")
+        }
+        (None, Some(c)) => match c.get_ref().as_slice() {
+            &[r, g, b] => (EnvSource::Constant([r, g, b]), c.span(), "color"),
+            _ => {
+                return Err(at(
+                    c.span(),
+                    "color",
+                    "must be an array of 3 numbers".into(),
+                ));
+            }
+        },
+        _ => {
+            return Err(at(
+                raw.span(),
+                "file",
+                "give exactly one of `file` and `color`".into(),
+            ));
+        }
+    };
+    let strength = env.strength.as_ref().map_or(1.0, |s| *s.get_ref());
+    let rotation = env.rotation.as_ref().map_or(0.0, |s| *s.get_ref());
+    if let Some(s) = &env.strength
+        && !(s.get_ref().is_finite() && *s.get_ref() >= 0.0)
+    {
+        return Err(at(
+            s.span(),
+            "strength",
+            "must be a finite non-negative number".into(),
+        ));
+    }
+    if let Some(r) = &env.rotation
+        && !r.get_ref().is_finite()
+    {
+        return Err(at(r.span(), "rotation", "must be a finite number".into()));
+    }
+    let visible = env.visible.unwrap_or(true);
+    Environment::load(&source.0, strength, rotation, visible)
+        .map(Some)
+        .map_err(|m| at(source.1, source.2, m))
+}
+
+/// A constant environment of radiance `c` (strength 1, visible).
+pub fn constant(c: Vec3) -> Environment {
+    Environment::load(&EnvSource::Constant(c.to_array()), 1.0, 0.0, true)
+        .expect("a finite non-negative colour")
+}
