@@ -29,7 +29,6 @@ use crate::accel::bvh::Bvh;
 use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims};
 use crate::accel::triangle::{Hit, TriangleEdges};
 use crate::film::{AovSample, accumulate};
-use crate::integrator::bsdf::Surface;
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{
     Estimator, connect_shaded, emission_weight, escaped, survival as survival_of,
@@ -223,7 +222,7 @@ impl ReferenceTracer {
         }
 
         let p = Vec3::from(s.p);
-        let surface = Surface::of(material);
+        let surface = self.tables.scattering(&s);
         let mut beta = beta;
         let mut survival = 1.0;
         if let Some(u) = est.roulette_number(sampler, path, depth) {

@@ -9,8 +9,12 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
 use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
-use crate::scene::{Model, Scene, TriangleUv, barycentric, interpolate_normal, interpolate_uv};
+use crate::scene::texture::{Texture, TextureRef};
+use crate::scene::{
+    Material, Model, Scene, TriangleUv, barycentric, interpolate_normal, interpolate_uv,
+};
 use std::f32::consts::PI;
+use std::sync::Arc;
 use wide::f32x8;
 
 /// Tables of rows above this many bytes are [`Tables::prefetch_rows`]'s
@@ -68,6 +72,20 @@ pub struct Tables {
     /// per triangle (empty when the scene has none:
     /// [`Scene::texturing`]).
     pub uv: Vec<([glam::Vec3; 3], TriangleUv)>,
+    /// Each material's metalness (metallic-roughness).
+    pub metallic: Vec<f32>,
+    /// The materials, for the textured ones' lookups
+    /// ([`Tables::scattering`]).
+    materials: Vec<Material>,
+    /// Per model (in the order of [`Model::ALL`]), whether some surface of
+    /// it is textured (a material with [`Maps`](crate::scene::material::Maps),
+    /// or vertex colours): its parameters are looked up per hit.
+    textured: [bool; Model::ALL.len()],
+    /// Triangles' vertices and vertex colours ([`Scene::texturing`]), or
+    /// empty.
+    colours: Vec<([glam::Vec3; 3], [[f32; 4]; 3])>,
+    /// The images the materials' maps read.
+    textures: Arc<Vec<Texture>>,
 }
 
 impl Tables {
@@ -133,6 +151,18 @@ impl Tables {
                 .zip(&scene.texturing.uv)
                 .map(|(t, uv)| (t.v, *uv))
                 .collect(),
+            metallic: surfaces.iter().map(|s| s.metallic).collect(),
+            materials: scene.materials.clone(),
+            textured: Model::ALL.map(|model| {
+                (scene.materials.iter()).any(|m| {
+                    m.model == model && (!m.maps.is_empty() || !scene.texturing.colours.is_empty())
+                })
+            }),
+            colours: (scene.triangles.iter())
+                .zip(&scene.texturing.colours)
+                .map(|(t, c)| (t.v, *c))
+                .collect(),
+            textures: scene.texturing.textures.clone(),
         }
     }
 
@@ -343,6 +373,94 @@ impl Tables {
             ),
             alpha: of_mat(&self.alpha),
             ior: of_mat(&self.ior),
+            metallic: match model {
+                Model::MetallicRoughness => of_mat(&self.metallic),
+                _ => f32x8::ZERO,
+            },
+        }
+    }
+
+    /// Whether surfaces of `model` have parameters looked up per hit
+    /// (textures or vertex colours).
+    #[inline(always)]
+    pub fn is_textured(&self, model: Model) -> bool {
+        self.textured[model as usize]
+    }
+
+    /// The scattering of the surface at `hit` (one lane): its material's
+    /// ([`Surface::of`]), or, where the material is textured or the
+    /// triangle has vertex colours, with those looked up at the hit
+    /// ([`Surface::textured`]). The one lookup both engines make, so they
+    /// scatter with the same bits.
+    #[inline]
+    pub fn scattering(&self, hit: &SurfaceHit<f32>) -> Surface<f32> {
+        self.scattering_at(hit.prim as usize, hit.material, hit.uv, hit.p)
+    }
+
+    /// [`scattering`](Self::scattering) of primitive `prim` of material
+    /// `material` at the point `p` of texture coordinates `uv`.
+    #[inline]
+    fn scattering_at(
+        &self,
+        prim: usize,
+        material: u32,
+        uv: [[f32; 2]; 2],
+        p: V3<f32>,
+    ) -> Surface<f32> {
+        let m = &self.materials[material as usize];
+        if !self.is_textured(m.model) {
+            return Surface::of(m);
+        }
+        let lookup = |t: &TextureRef| {
+            let at = t.transform.apply(uv[(t.tex_coord as usize).min(1)]);
+            self.textures[t.texture as usize].sample(t.sampler, at[0], at[1])
+        };
+        let mut colour = glam::Vec3::ONE;
+        if let Some(t) = &m.maps.base_colour {
+            let c = lookup(t);
+            colour = glam::Vec3::new(c[0], c[1], c[2]);
+        }
+        if let Some((v, c)) = self.colours.get(prim) {
+            let b = barycentric(*v, glam::Vec3::from(p));
+            let at = |k: usize| c[0][k] * b[0] + c[1][k] * b[1] + c[2][k] * b[2];
+            colour *= glam::Vec3::new(at(0), at(1), at(2));
+        }
+        let mr = match &m.maps.metallic_roughness {
+            Some(t) => {
+                let c = lookup(t);
+                (c[2], c[1])
+            }
+            None => (1.0, 1.0),
+        };
+        Surface::textured(m, colour, mr)
+    }
+
+    /// [`surfaces`](Self::surfaces) of eight lanes at their hits `hit`:
+    /// for a textured model, each lane's [`scattering`](Self::scattering)
+    /// (the reference tracer's bits); else the constant columns.
+    #[inline(always)]
+    pub fn surfaces_at(
+        &self,
+        model: Model,
+        tris: &[usize; 8],
+        hit: &SurfaceHit<f32x8>,
+    ) -> Surface<f32x8> {
+        if !self.is_textured(model) {
+            return self.surfaces(model, tris);
+        }
+        let p = lanes3(hit.p);
+        let uv = hit.uv.map(|set| set.map(|c| c.to_array()));
+        let lane: [Surface<f32>; 8] = std::array::from_fn(|l| {
+            let uv = uv.map(|set| set.map(|c| c[l]));
+            self.scattering_at(tris[l], hit.material[l], uv, p[l])
+        });
+        let col = |f: fn(&Surface<f32>) -> f32| f32x8::new(lane.map(|s| f(&s)));
+        Surface {
+            model,
+            tint: V3::new(col(|s| s.tint.x), col(|s| s.tint.y), col(|s| s.tint.z)),
+            alpha: col(|s| s.alpha),
+            ior: col(|s| s.ior),
+            metallic: col(|s| s.metallic),
         }
     }
 

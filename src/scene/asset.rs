@@ -71,8 +71,8 @@ pub struct AssetMesh {
     pub colours: Vec<[f32; 4]>,
     /// Triangles, counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
-    /// Index into [`Asset::materials`], or `None` for the default material
-    /// (white, metallic 1, roughness 1 in glTF; diffuse grey in PLY).
+    /// Index into [`Asset::materials`], or `None` for
+    /// [`Asset::default_material`].
     pub material: Option<u32>,
 }
 
@@ -139,27 +139,32 @@ pub struct PbrMaterial {
     pub thickness: f32,
 }
 
-impl Default for PbrMaterial {
+impl PbrMaterial {
     /// glTF's default material: white, fully metallic, fully rough.
+    pub const DEFAULT: Self = Self {
+        name: String::new(),
+        base_colour: [1.0; 4],
+        base_colour_texture: None,
+        metallic: 1.0,
+        roughness: 1.0,
+        metallic_roughness_texture: None,
+        normal_texture: None,
+        emissive: [0.0; 3],
+        emissive_texture: None,
+        alpha_mode: AlphaMode::Opaque,
+        double_sided: false,
+        ior: 1.5,
+        specular: 1.0,
+        specular_colour: [1.0; 3],
+        transmission: 0.0,
+        thickness: 0.0,
+    };
+}
+
+impl Default for PbrMaterial {
+    /// [`PbrMaterial::DEFAULT`].
     fn default() -> Self {
-        Self {
-            name: String::new(),
-            base_colour: [1.0; 4],
-            base_colour_texture: None,
-            metallic: 1.0,
-            roughness: 1.0,
-            metallic_roughness_texture: None,
-            normal_texture: None,
-            emissive: [0.0; 3],
-            emissive_texture: None,
-            alpha_mode: AlphaMode::Opaque,
-            double_sided: false,
-            ior: 1.5,
-            specular: 1.0,
-            specular_colour: [1.0; 3],
-            transmission: 0.0,
-            thickness: 0.0,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -191,6 +196,9 @@ pub struct Asset {
     pub cameras: Vec<AssetCamera>,
     /// What was skipped or ignored (one line each).
     pub warnings: Vec<String>,
+    /// The material of meshes without one: glTF's default (white,
+    /// metallic 1, roughness 1) unless the loader sets another.
+    pub default_material: PbrMaterial,
 }
 
 impl Asset {

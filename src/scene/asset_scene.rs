@@ -3,16 +3,16 @@
 //! triangles, its camera (or one that frames it), and a light where it has
 //! none.
 //!
-//! **Interim materials.** Until the engines evaluate textures and glTF's
-//! metallic-roughness model (`integrator::bsdf::metallic_roughness`
-//! exists, the engines' material seam does not yet reach it), each [`PbrMaterial`] is rendered
-//! with the nearest existing model: `metallic ≥ ½` as [`Model::Metal`] of
-//! reflectance the base colour and α = roughness², else
-//! [`Model::Diffuse`] of reflectance the base colour;
-//! `transmission ≥ ½` as [`Model::Glass`] of the material's index. A
-//! texture counts as its mean (base colour and emission), so a textured
-//! asset renders in its average colours; vertex colours and normal
-//! textures are not used yet.
+//! **Materials.** Each [`PbrMaterial`] becomes a
+//! [`Model::MetallicRoughness`] material (glTF's Appendix B, in both
+//! engines) of its base colour, metalness and roughness factors, with its
+//! base colour and metallic-roughness textures as [`Maps`] and the
+//! vertex colours `COLOR_0` (looked up per hit). Not yet evaluated per
+//! hit: emissive textures (they count as their mean colour), normal
+//! textures, alpha (`MASK`/`BLEND` render opaque) and
+//! `KHR_materials_transmission`, which, at `transmission ≥ ½`, renders
+//! as [`Model::Glass`] of the material's index (the base colour texture
+//! as its mean).
 //!
 //! **Defaults.** Without a camera in the file: one looking at the centre
 //! of the bounds from the direction [`DEFAULT_VIEW`] (front, right, above;
@@ -25,6 +25,8 @@
 use super::asset::{Asset, AssetError, PbrMaterial};
 use super::builder::{Origin, SceneBuilder, View};
 use super::camera::Camera;
+use super::material::Maps;
+use super::texture::TextureRef;
 use super::{Material, Model, RenderOptions, Scene, SceneError, Triangle};
 use glam::{Mat4, Vec3};
 use std::path::Path;
@@ -86,12 +88,13 @@ fn texture_mean(asset: &Asset, t: u32) -> Vec3 {
     )
 }
 
-/// The interim material of `m` (see the module documentation).
-pub fn interim_material(asset: &Asset, m: &PbrMaterial) -> Material {
-    let mut base = Vec3::new(m.base_colour[0], m.base_colour[1], m.base_colour[2]);
-    if let Some(t) = m.base_colour_texture {
-        base *= texture_mean(asset, t.texture);
-    }
+/// The material of `m`, its textures numbered from `first_texture` in
+/// the scene: [`Model::MetallicRoughness`] of its base colour, metalness
+/// and roughness factors, with its base colour and metallic-roughness
+/// textures as [`Maps`] (looked up per hit by both engines); see the
+/// module documentation for what is not yet evaluated per hit.
+pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material {
+    let base = Vec3::new(m.base_colour[0], m.base_colour[1], m.base_colour[2]);
     let mut emission = Vec3::from(m.emissive);
     if let Some(t) = m.emissive_texture {
         emission *= texture_mean(asset, t.texture);
@@ -102,9 +105,21 @@ pub fn interim_material(asset: &Asset, m: &PbrMaterial) -> Material {
         out.model = Model::Glass;
         out.ior = m.ior;
         out.transmittance = base;
-    } else if m.metallic >= 0.5 {
-        out.model = Model::Metal;
-        out.alpha = (m.roughness * m.roughness).clamp(0.0, 1.0);
+        if let Some(t) = m.base_colour_texture {
+            out.transmittance *= texture_mean(asset, t.texture);
+        }
+    } else {
+        let scene_ref = |t: TextureRef| TextureRef {
+            texture: first_texture + t.texture,
+            ..t
+        };
+        out.model = Model::MetallicRoughness;
+        out.metallic = m.metallic.clamp(0.0, 1.0);
+        out.roughness = m.roughness.clamp(0.0, 1.0);
+        out.maps = Maps {
+            base_colour: m.base_colour_texture.map(scene_ref),
+            metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
+        };
     }
     out
 }
@@ -125,8 +140,8 @@ pub fn default_light(lo: Vec3, hi: Vec3) -> [[Vec3; 3]; 2] {
     ]
 }
 
-/// Adds `asset` to the scene `b` builds: its materials (interim, see the
-/// module documentation; named `prefix:name` where `prefix` is not empty),
+/// Adds `asset` to the scene `b` builds: its textures, its materials
+/// ([`material`]; named `prefix:name` where `prefix` is not empty),
 /// then the default material, then every instance's triangles in world
 /// space, each instance placed by `placement` after its own transform
 /// (`None`: as the file places it). `at` is where the asset is named, for
@@ -146,14 +161,15 @@ pub fn place(
         },
     };
     let first = b.materials().len() as u32;
+    let first_texture = b.textures(&asset.textures);
     for m in &asset.materials {
-        b.material(named(interim_material(asset, m)));
+        b.material(named(material(asset, m, first_texture)));
     }
     let default = PbrMaterial {
         name: "default".into(),
-        ..PbrMaterial::default()
+        ..asset.default_material.clone()
     };
-    let default_material = b.material(named(interim_material(asset, &default)));
+    let default_material = b.material(named(material(asset, &default, first_texture)));
     for inst in &asset.instances {
         let mesh = &asset.meshes[inst.mesh as usize];
         let transform = placement.map_or(inst.transform, |p| p * inst.transform);

@@ -20,6 +20,7 @@
 
 use super::asset::AssetMesh;
 use super::camera::Camera;
+use super::texture::Texture;
 use super::{Material, RenderOptions, Scene, Sphere, Texturing, Triangle, TriangleUv};
 use glam::{Mat3, Mat4, Vec3};
 use std::fmt;
@@ -166,6 +167,11 @@ pub struct SceneBuilder {
     /// Texture coordinates of the triangles that have them, and zeros for
     /// the ones before them; filled up the same way.
     uv: Vec<TriangleUv>,
+    /// Vertex colours of the triangles that have them, and white for the
+    /// ones before them; filled up the same way.
+    colours: Vec<[[f32; 4]; 3]>,
+    /// The images materials' maps refer to.
+    textures: Vec<Texture>,
     spheres: Vec<Sphere>,
     max_depth: u32,
     options: RenderOptions,
@@ -184,6 +190,8 @@ impl SceneBuilder {
             triangles: Vec::new(),
             vertex_normals: Vec::new(),
             uv: Vec::new(),
+            colours: Vec::new(),
+            textures: Vec::new(),
             spheres: Vec::new(),
             max_depth: 1,
             options: RenderOptions::default(),
@@ -215,6 +223,14 @@ impl SceneBuilder {
     pub fn material(&mut self, material: Material) -> u32 {
         self.materials.push(material);
         (self.materials.len() - 1) as u32
+    }
+
+    /// Adds the images `textures`; returns the index of the first (what
+    /// the materials that use them add to their indices).
+    pub fn textures(&mut self, textures: &[Texture]) -> u32 {
+        let first = self.textures.len() as u32;
+        self.textures.extend_from_slice(textures);
+        first
     }
 
     /// The materials so far.
@@ -403,6 +419,11 @@ impl SceneBuilder {
             let textured = !mesh.uv0.is_empty() || !mesh.uv1.is_empty();
             let uv = textured.then(|| [set(&mesh.uv0), set(&mesh.uv1)]);
             self.push(tri, n, uv);
+            if !mesh.colours.is_empty() {
+                let c = [mesh.colours[a], mesh.colours[b], mesh.colours[c]];
+                self.colours.resize(self.triangles.len() - 1, [[1.0; 4]; 3]);
+                self.colours.push(c);
+            }
         }
         Ok(())
     }
@@ -458,13 +479,21 @@ impl SceneBuilder {
         if !uv.is_empty() {
             uv.resize(self.triangles.len(), [[[0.0; 2]; 3]; 2]);
         }
+        let mut colours = self.colours;
+        if !colours.is_empty() {
+            colours.resize(self.triangles.len(), [[1.0; 4]; 3]);
+        }
         Ok(Scene {
             name: self.name,
             camera,
             materials: self.materials,
             triangles: self.triangles,
             vertex_normals,
-            texturing: Texturing { uv },
+            texturing: Texturing {
+                uv,
+                colours,
+                textures: std::sync::Arc::new(self.textures),
+            },
             spheres: self.spheres,
             max_depth: self.max_depth,
             options: self.options,

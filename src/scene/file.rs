@@ -189,6 +189,10 @@ struct MaterialFile {
     transmittance: Option<Spanned<Exact<[f32; 3]>>>,
     #[serde(default)]
     alpha: Option<Spanned<f32>>,
+    #[serde(default)]
+    metallic: Option<Spanned<f32>>,
+    #[serde(default)]
+    roughness: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -488,6 +492,7 @@ fn material(t: &Toml, name: &str, m: &Spanned<MaterialFile>) -> Result<Material,
     };
     fields.glass(f, &mut material)?;
     fields.metal(f, &mut material)?;
+    fields.metallic_roughness(f, &mut material)?;
     Ok(material)
 }
 
@@ -576,6 +581,34 @@ impl MaterialFields<'_> {
                 ));
             }
             material.alpha = v;
+        }
+        Ok(())
+    }
+
+    /// Metallic-roughness's `metallic` and `roughness`, each in [0, 1]
+    /// (refused on other models).
+    fn metallic_roughness(
+        &self,
+        f: &MaterialFile,
+        material: &mut Material,
+    ) -> Result<(), SceneError> {
+        for (key, value, slot) in [
+            ("metallic", &f.metallic, &mut material.metallic),
+            ("roughness", &f.roughness, &mut material.roughness),
+        ] {
+            let Some(value) = value else { continue };
+            if self.model != Model::MetallicRoughness {
+                self.unused(Some(value.span()), key, "metallic-roughness")?;
+            }
+            let v = *value.get_ref();
+            if !(0.0..=1.0).contains(&v) {
+                return Err(self.t.err(
+                    value.span(),
+                    &format!("materials.{}.{key}", self.name),
+                    "must be in [0, 1]",
+                ));
+            }
+            *slot = v;
         }
         Ok(())
     }

@@ -1,5 +1,6 @@
 //! Materials: a scattering model, a reflectance and an emission.
 
+use super::texture::TextureRef;
 use glam::Vec3;
 
 /// How a material scatters light. Each model has one scattering routine
@@ -23,14 +24,27 @@ pub enum Model {
     /// supersedes the Phong lobe the report wished for: a normalised,
     /// energy-conserving glossy lobe whose α → 0 is the mirror.
     Metal,
+    /// glTF 2.0's metallic-roughness material, as the specification's
+    /// Appendix B defines it (a Lambertian diffuse lobe and a GGX specular
+    /// lobe, Schlick Fresnel with `F0 = mix(0.04, base, metallic)`): base
+    /// colour the reflectance, [`Material::metallic`],
+    /// [`Material::roughness`] (α = roughness²), each possibly textured
+    /// ([`Maps`]). Both sides scatter.
+    MetallicRoughness,
 }
 
 impl Model {
     /// The names the scene format gives the models.
-    pub const NAMES: &[&str] = &["diffuse", "mirror", "glass", "metal"];
+    pub const NAMES: &[&str] = &["diffuse", "mirror", "glass", "metal", "metallic-roughness"];
 
     /// Every model, in the order of [`Model::NAMES`].
-    pub const ALL: [Model; 4] = [Model::Diffuse, Model::Mirror, Model::Glass, Model::Metal];
+    pub const ALL: [Model; 5] = [
+        Model::Diffuse,
+        Model::Mirror,
+        Model::Glass,
+        Model::Metal,
+        Model::MetallicRoughness,
+    ];
 
     /// The model named `name` in scene files.
     pub fn from_name(name: &str) -> Option<Self> {
@@ -39,6 +53,7 @@ impl Model {
             "mirror" => Some(Model::Mirror),
             "glass" => Some(Model::Glass),
             "metal" => Some(Model::Metal),
+            "metallic-roughness" => Some(Model::MetallicRoughness),
             _ => None,
         }
     }
@@ -50,6 +65,7 @@ impl Model {
             Model::Mirror => "mirror",
             Model::Glass => "glass",
             Model::Metal => "metal",
+            Model::MetallicRoughness => "metallic-roughness",
         }
     }
 
@@ -76,6 +92,25 @@ pub const IOR_RANGE: std::ops::RangeInclusive<f32> = 0.1..=10.0;
 /// The roughness of metal when the scene gives none.
 pub const DEFAULT_ALPHA: f32 = 0.1;
 
+/// The textures a material's parameters are multiplied by, looked up at
+/// the hit's texture coordinates in both engines (none: the material is
+/// constant, and costs what it did before textures).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Maps {
+    /// Multiplies the reflectance (the base colour), RGB (sRGB-decoded).
+    pub base_colour: Option<TextureRef>,
+    /// [`Model::MetallicRoughness`]: B multiplies
+    /// [`Material::metallic`], G [`Material::roughness`] (linear).
+    pub metallic_roughness: Option<TextureRef>,
+}
+
+impl Maps {
+    /// Whether no parameter is textured.
+    pub fn is_empty(&self) -> bool {
+        self.base_colour.is_none() && self.metallic_roughness.is_none()
+    }
+}
+
 /// A material: how it scatters, and what it emits.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -95,6 +130,13 @@ pub struct Material {
     /// GGX roughness α of [`Model::Metal`] (the α of the distribution
     /// itself), in `[0, 1]`.
     pub alpha: f32,
+    /// Metalness of [`Model::MetallicRoughness`], in `[0, 1]`.
+    pub metallic: f32,
+    /// Roughness of [`Model::MetallicRoughness`] (its GGX α is the
+    /// square), in `[0, 1]`.
+    pub roughness: f32,
+    /// Textured parameters (none by default).
+    pub maps: Maps,
 }
 
 impl Material {
@@ -109,6 +151,9 @@ impl Material {
             ior: DEFAULT_IOR,
             transmittance: Vec3::ONE,
             alpha: DEFAULT_ALPHA,
+            metallic: 0.0,
+            roughness: 1.0,
+            maps: Maps::default(),
         }
     }
 
@@ -117,12 +162,23 @@ impl Material {
     /// hashes as nothing: hashes of scenes from before models existed stay
     /// what they were.
     pub fn model_words(&self) -> Vec<Vec3> {
-        match self.model {
+        let mut words = match self.model {
             Model::Diffuse => vec![],
             Model::Mirror => vec![Vec3::new(1.0, 0.0, 0.0)],
             Model::Glass => vec![Vec3::new(2.0, self.ior, 0.0), self.transmittance],
             Model::Metal => vec![Vec3::new(3.0, self.alpha, 0.0)],
+            Model::MetallicRoughness => vec![Vec3::new(4.0, self.metallic, self.roughness)],
+        };
+        // (Constant materials hash as before textures existed.)
+        for (k, t) in [&self.maps.base_colour, &self.maps.metallic_roughness]
+            .into_iter()
+            .enumerate()
+        {
+            if let Some(t) = t {
+                words.extend(t.hash_words(k as f32));
+            }
         }
+        words
     }
 
     /// Whether the material emits any light.

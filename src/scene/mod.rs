@@ -179,12 +179,20 @@ pub struct Texturing {
     /// Per triangle, the coordinates of its vertices `v[0..3]`, for
     /// coordinate sets 0 and 1 (set 1 is zero where the file has none).
     pub uv: Vec<TriangleUv>,
+    /// Per triangle, its vertices' colours (glTF's `COLOR_0`, linear
+    /// RGBA), which multiply its material's base colour; empty when no
+    /// triangle has any, else white for a triangle without.
+    pub colours: Vec<[[f32; 4]; 3]>,
+    /// The images materials' [`Maps`](material::Maps) refer to, decoded
+    /// (shared by the engines, not copied).
+    pub textures: std::sync::Arc<Vec<texture::Texture>>,
 }
 
 impl Texturing {
-    /// Whether no triangle has texture coordinates.
+    /// Whether no triangle has texture coordinates or colours, and there
+    /// are no textures.
     pub fn is_empty(&self) -> bool {
-        self.uv.is_empty()
+        self.uv.is_empty() && self.colours.is_empty() && self.textures.is_empty()
     }
 }
 
@@ -348,10 +356,22 @@ impl Scene {
                 put(Vec3::new(set[1][1], set[2][0], set[2][1]));
             }
         }
+        for c in &self.texturing.colours {
+            for v in c {
+                put(Vec3::new(v[0], v[1], v[2]));
+                put(Vec3::new(v[3], -2.0, 0.0));
+            }
+        }
         // (Scenes without spheres hash as before spheres existed.)
         for s in &self.spheres {
             put(s.center);
             put(Vec3::new(s.radius, s.material as f32, -1.0));
+        }
+        for t in self.texturing.textures.iter() {
+            for k in [t.width() as u64, t.height() as u64, t.is_srgb() as u64] {
+                h.update(&k.to_le_bytes());
+            }
+            h.update(t.texel_bytes());
         }
         // (Scenes without an environment hash as before it existed.)
         if let Some(e) = &self.environment {

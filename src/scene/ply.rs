@@ -11,12 +11,23 @@
 //! of sides triangulated as fans. Other elements and properties are read
 //! past and ignored.
 
-use super::asset::{Asset, AssetError, AssetMesh, Instance};
+use super::asset::{Asset, AssetError, AssetMesh, Instance, PbrMaterial};
 use glam::{Mat4, Vec3};
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, Property, PropertyAccess, PropertyAccessResult};
 use std::io::BufRead;
 use std::path::Path;
+
+/// The material of a PLY file's mesh (PLY has none): a matte grey
+/// dielectric (base colour 0.8, metallic 0, roughness 1), which vertex
+/// colours multiply.
+pub fn ply_material() -> PbrMaterial {
+    PbrMaterial {
+        base_colour: [0.8, 0.8, 0.8, 1.0],
+        metallic: 0.0,
+        ..PbrMaterial::DEFAULT
+    }
+}
 
 /// A vertex's properties, as read.
 #[derive(Default)]
@@ -211,7 +222,10 @@ pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
             }
         }
     }
-    let mut asset = Asset::default();
+    let mut asset = Asset {
+        default_material: ply_material(),
+        ..Asset::default()
+    };
     if mesh.triangles.is_empty() {
         asset
             .warnings

@@ -324,6 +324,16 @@ impl Texture {
         self.texels.len() * BYTES_PER_TEXEL
     }
 
+    /// The texels' bytes, RGBA, row by row from the top.
+    pub fn texel_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.texels)
+    }
+
+    /// Whether it decodes with the sRGB curve (else linearly).
+    pub fn is_srgb(&self) -> bool {
+        self.space == ColourSpace::Srgb
+    }
+
     /// Texel `(i, j)` (column, row; both in range), decoded: RGB through
     /// the table, alpha linear.
     #[inline]
@@ -370,6 +380,22 @@ impl Texture {
                 })
             }
         }
+    }
+}
+
+impl TextureRef {
+    /// What a scene's content hash takes of it, as words of three floats
+    /// (the first word starts with `slot`, the parameter it textures).
+    pub fn hash_words(&self, slot: f32) -> [glam::Vec3; 4] {
+        let m = self.transform.m;
+        let s = self.sampler;
+        let code = |w: Wrap| w as u32 as f32;
+        [
+            glam::Vec3::new(slot, self.texture as f32, self.tex_coord as f32),
+            glam::Vec3::new(code(s.wrap_u), code(s.wrap_v), s.filter as u32 as f32),
+            glam::Vec3::new(m[0], m[1], m[2]),
+            glam::Vec3::new(m[3], m[4], m[5]),
+        ]
     }
 }
 

@@ -8,6 +8,7 @@
 //! [`Model`] (with its name and whether it is a delta lobe), its arms here
 //! (parameters, sampling, evaluation), and its fields in the scene format.
 
+use super::metallic_roughness::{self as mr, Params};
 use super::{BsdfSample, diffuse, facing, glass, leaks, metal, mirror};
 use crate::math::{Real, V3};
 use crate::scene::{Material, Model};
@@ -21,10 +22,12 @@ pub struct Surface<R: Real> {
     /// The model's colour: the BRDF `ρ/π` for diffuse; the reflectance for
     /// mirror and metal; the transmittance for glass.
     pub tint: V3<R>,
-    /// GGX roughness α (metal).
+    /// GGX roughness α (metal, metallic-roughness).
     pub alpha: R,
     /// Index of refraction (glass).
     pub ior: R,
+    /// Metalness (metallic-roughness).
+    pub metallic: R,
 }
 
 impl Surface<f32> {
@@ -36,15 +39,48 @@ impl Surface<f32> {
     pub fn of(material: &Material) -> Self {
         let tint = match material.model {
             Model::Diffuse => material.reflectance / PI,
-            Model::Mirror | Model::Metal => material.reflectance,
+            Model::Mirror | Model::Metal | Model::MetallicRoughness => material.reflectance,
             Model::Glass => material.transmittance,
+        };
+        let (alpha, metallic) = match material.model {
+            Model::MetallicRoughness => {
+                (material.roughness * material.roughness, material.metallic)
+            }
+            _ => (material.alpha, 0.0),
         };
         Surface {
             model: material.model,
             tint: V3::from(tint),
-            alpha: material.alpha,
+            alpha,
             ior: material.ior,
+            metallic,
         }
+    }
+
+    /// The scattering of `material` at a point where its textures read
+    /// `colour` (what multiplies its reflectance, or glass's
+    /// transmittance: base colour texture × vertex colour) and `(m, r)`
+    /// (what multiply a metallic-roughness material's metalness and
+    /// roughness). With white and ones it is [`Surface::of`]'s surface up
+    /// to rounding (not bit for bit: constant materials use
+    /// [`Surface::of`]).
+    #[inline]
+    pub fn textured(material: &Material, colour: glam::Vec3, (m, r): (f32, f32)) -> Self {
+        let mut s = Self::of(material);
+        let tint = match material.model {
+            Model::Diffuse => material.reflectance * colour / PI,
+            Model::Mirror | Model::Metal | Model::MetallicRoughness => {
+                material.reflectance * colour
+            }
+            Model::Glass => material.transmittance * colour,
+        };
+        s.tint = V3::from(tint);
+        if material.model == Model::MetallicRoughness {
+            let roughness = material.roughness * r;
+            s.alpha = roughness * roughness;
+            s.metallic = material.metallic * m;
+        }
+        s
     }
 }
 
@@ -57,6 +93,17 @@ impl<R: Real> Surface<R> {
             tint: f,
             alpha: R::splat(0.0),
             ior: R::splat(1.0),
+            metallic: R::splat(0.0),
+        }
+    }
+
+    /// The metallic-roughness parameters (base colour the tint).
+    #[inline(always)]
+    fn params(&self) -> Params<R> {
+        Params {
+            base: self.tint,
+            metallic: self.metallic,
+            alpha: self.alpha,
         }
     }
 
@@ -75,6 +122,7 @@ impl<R: Real> Surface<R> {
             Model::Mirror => mirror::sample(n, wo, self.tint),
             Model::Glass => glass::sample(normal, wo, self.ior, self.tint, u[0]),
             Model::Metal => metal::sample(n, wo, self.alpha, self.tint, u),
+            Model::MetallicRoughness => mr::sample(n, wo, &self.params(), u),
         }
     }
 
@@ -104,6 +152,7 @@ impl<R: Real> Surface<R> {
                 glass::sample(outward, wo, self.ior, self.tint, u[0])
             }
             Model::Metal => metal::sample(ns, wo, self.alpha, self.tint, u),
+            Model::MetallicRoughness => mr::sample(ns, wo, &self.params(), u),
         };
         let (zero, one) = (R::splat(0.0), R::splat(1.0));
         let leak = leaks(ns, ng, s.wi);
@@ -133,6 +182,12 @@ impl<R: Real> Surface<R> {
                 let f = metal::eval(n, wo, wi, self.alpha, self.tint);
                 let cos = n.dot(wi).max(zero);
                 (f.scale(cos), cos, metal::pdf(n, wo, wi, self.alpha))
+            }
+            Model::MetallicRoughness => {
+                let p = self.params();
+                let f = mr::eval(n, wo, wi, &p);
+                let cos = n.dot(wi).max(zero);
+                (f.scale(cos), cos, mr::pdf(n, wo, wi, &p))
             }
             Model::Mirror | Model::Glass => (V3::new(zero, zero, zero), zero, zero),
         }

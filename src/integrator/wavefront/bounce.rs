@@ -50,7 +50,6 @@ pub fn scatter<S: Sampler>(
         // borrow the first lane's triangle for the lookups.
         let tri = |l: usize| queue.hit[i + if l < lanes { l } else { 0 }] as usize;
         let tris: [usize; 8] = std::array::from_fn(tri);
-        let surface = tables.surfaces(model, &tris);
         let (_lobe, u) = estimator.bsdf_numbers_8(sampler, &mut queue.sampler[i..i + lanes]);
         let load3 = |cols: &[Vec<f32>; 3]| {
             V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i))
@@ -60,6 +59,7 @@ pub fn scatter<S: Sampler>(
         let beta = load3(&queue.beta);
         let t = load8(&queue.t, i);
         let hit = tables.surface_8(&tris, (o, d), t);
+        let surface = tables.surfaces_at(model, &tris, &hit);
         let s = if tables.has_smooth() {
             surface.sample_shaded((hit.front, hit.n, hit.ns), d, u, report)
         } else {

@@ -63,7 +63,7 @@ fn sample_lights_8<S: Sampler>(
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
     let s = tables.surface_8(&tris, (o, d), t);
     let light = lights.sample_8(s.p, [u0, u1], lanes);
-    let surface = tables.surfaces(model, &tris);
+    let surface = tables.surfaces_at(model, &tris, &s);
     let (valid, ray) = if tables.has_smooth() {
         connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), &surface)
     } else {
