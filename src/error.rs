@@ -3,7 +3,7 @@
 use crate::denoise::DenoiseError;
 use crate::film::WtaccError;
 use crate::film::ranges::MissingSamples;
-use crate::fs::FileError;
+use crate::fs::{Clash, FileError};
 use crate::run::shard::ShardError;
 use crate::scene::SceneError;
 use crate::scene::format::ForeignScene;
@@ -30,6 +30,10 @@ pub enum Error {
     /// A file could not be read or written.
     #[error(transparent)]
     Io(#[from] FileError),
+    /// An output names one of the command's inputs, or another output
+    /// (refused before any work starts).
+    #[error("invalid setting: {0}")]
+    Clash(#[from] Clash),
     /// An accumulation file (checkpoint or partial file) is unusable.
     #[error(transparent)]
     Accumulation(#[from] WtaccError),

@@ -389,3 +389,397 @@ fn the_address_space_limit_bounds_the_memory_estimate() {
     assert!(e.contains("memory") && !e.contains("panicked"), "{e}");
     run_ok(&dir, &args);
 }
+
+// --- 2. No output over an input, nor over another output ---
+
+/// Every file under `dir` (recursively) and its bytes, links as links.
+fn snapshot(dir: &std::path::Path) -> Vec<(std::path::PathBuf, Vec<u8>)> {
+    let mut all = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let path = e.unwrap().path();
+            let meta = std::fs::symlink_metadata(&path).unwrap();
+            if meta.is_dir() {
+                stack.push(path);
+            } else if meta.is_symlink() {
+                let to = std::fs::read_link(&path).unwrap();
+                all.push((path, to.into_os_string().into_encoded_bytes()));
+            } else {
+                all.push((path.clone(), std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    all.sort();
+    all
+}
+
+/// `wavetrace args` in `dir` is refused before any work, with an error
+/// that names `flag` and `file`, and leaves every file in `dir` as it was
+/// (nothing overwritten, nothing made).
+fn refused_keeping_inputs(dir: &std::path::Path, args: &[&str], flag: &str, file: &str) {
+    let before = snapshot(dir);
+    let e = run_refused(dir, args);
+    assert!(
+        e.contains(flag) && e.contains(file) && !e.contains("panicked"),
+        "{args:?}: expected {flag} and {file} named: {e}"
+    );
+    assert!(
+        snapshot(dir) == before,
+        "{args:?}: a file was written or changed"
+    );
+}
+
+/// A directory with the Cornell box (`s.toml`), the OBJ scene with its
+/// mesh and MTL file (`obj.toml`, `meshes/`), a profile and a reference
+/// image of 8x8 pixels (`r.pfm`).
+fn inputs_dir(name: &str) -> TempDir {
+    let dir = TempDir::new(name);
+    std::fs::copy("scenes/cornell.toml", dir.join("s.toml")).unwrap();
+    std::fs::copy("scenes/cornell-obj.toml", dir.join("obj.toml")).unwrap();
+    std::fs::create_dir(dir.join("meshes")).unwrap();
+    for f in ["crate.obj", "crate.mtl"] {
+        std::fs::copy(format!("scenes/meshes/{f}"), dir.join("meshes").join(f)).unwrap();
+    }
+    std::fs::write(dir.join("p.toml"), "spp = 1\nwidth = 8\nheight = 8\n").unwrap();
+    let rgb = vec![[0.25f32; 3]; 64];
+    wavetrace::output::write_image(&dir.join("r.pfm"), 8, 8, &rgb).unwrap();
+    dir
+}
+
+const SMALL: [&str; 6] = ["--width", "8", "--height", "8", "--spp", "1"];
+
+/// `--stats s.toml` replaced the scene with JSON (exit 0); likewise
+/// `--stats` naming a mesh, an MTL file or the profile, `--out` naming
+/// the reference, an AOV file or `--keep-noisy` naming the scene or the
+/// reference, and `--keep-noisy` and `--stats` one file. Each is refused
+/// before any work, naming the flag and the file, with every file as it
+/// was.
+#[test]
+fn a_render_refuses_an_output_that_is_an_input() {
+    let dir = inputs_dir("render-over-input");
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("s.toml", dir.join("link.png")).unwrap();
+        std::os::unix::fs::symlink("s.toml", dir.join("link.albedo.pfm")).unwrap();
+        std::os::unix::fs::symlink("r.pfm", dir.join("ref-link.pfm")).unwrap();
+        std::fs::hard_link(dir.join("s.toml"), dir.join("hard.png")).unwrap();
+        std::fs::hard_link(dir.join("meshes/crate.mtl"), dir.join("mtl.json")).unwrap();
+    }
+    let with = |extra: &[&'static str]| [&SMALL[..], extra].concat();
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            with(&["s.toml", "--out", "o.png", "--stats", "s.toml"]),
+            "--stats",
+            "s.toml",
+        ),
+        (
+            with(&["s.toml", "--out", "o.png", "--stats", "./meshes/../s.toml"]),
+            "--stats",
+            "s.toml",
+        ),
+        (
+            with(&["obj.toml", "--out", "o.png", "--stats", "meshes/crate.obj"]),
+            "--stats",
+            "meshes/crate.obj",
+        ),
+        (
+            with(&["obj.toml", "--out", "o.png", "--stats", "meshes/crate.mtl"]),
+            "--stats",
+            "meshes/crate.mtl",
+        ),
+        (
+            vec![
+                "s.toml",
+                "--profile",
+                "p.toml",
+                "--out",
+                "o.png",
+                "--stats",
+                "p.toml",
+            ],
+            "--stats",
+            "p.toml",
+        ),
+        (
+            with(&["s.toml", "--out", "r.pfm", "--reference", "r.pfm"]),
+            "--out",
+            "r.pfm",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "o.png",
+                "--stats",
+                "r.pfm",
+                "--reference",
+                "r.pfm",
+            ]),
+            "--stats",
+            "r.pfm",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "ref.pfm",
+                "--aov",
+                "albedo",
+                "--reference",
+                "ref.albedo.pfm",
+            ]),
+            "an AOV file of --out",
+            "ref.albedo.pfm",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "o.pfm",
+                "--denoise",
+                "--keep-noisy",
+                "r.pfm",
+                "--reference",
+                "r.pfm",
+            ]),
+            "--keep-noisy",
+            "r.pfm",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "o.pfm",
+                "--denoise",
+                "--keep-noisy",
+                "n.pfm",
+                "--stats",
+                "n.pfm",
+            ]),
+            "--keep-noisy",
+            "n.pfm",
+        ),
+    ];
+    // The reference of the AOV case, named like an AOV file of --out.
+    std::fs::copy(dir.join("r.pfm"), dir.join("ref.albedo.pfm")).unwrap();
+    for (args, flag, file) in &cases {
+        refused_keeping_inputs(&dir, args, flag, file);
+    }
+    #[cfg(unix)]
+    for (args, flag, file) in [
+        (with(&["s.toml", "--out", "link.png"]), "--out", "link.png"),
+        (with(&["s.toml", "--out", "hard.png"]), "--out", "hard.png"),
+        (
+            with(&["s.toml", "--out", "link.pfm", "--aov", "albedo"]),
+            "an AOV file of --out",
+            "s.toml",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "o.pfm",
+                "--denoise",
+                "--keep-noisy",
+                "link.png",
+            ]),
+            "--keep-noisy",
+            "s.toml",
+        ),
+        (
+            with(&[
+                "s.toml",
+                "--out",
+                "o.png",
+                "--reference",
+                "ref-link.pfm",
+                "--stats",
+                "r.pfm",
+            ]),
+            "--stats",
+            "ref-link.pfm",
+        ),
+        (
+            with(&["obj.toml", "--out", "o.png", "--stats", "mtl.json"]),
+            "--stats",
+            "mtl.json",
+        ),
+    ] {
+        refused_keeping_inputs(&dir, &args, flag, file);
+    }
+    // The same runs with outputs of their own render.
+    run_ok(
+        &dir,
+        &with(&["obj.toml", "--out", "o.png", "--stats", "st.json"]),
+    );
+    run_ok(
+        &dir,
+        &with(&["s.toml", "--out", "o.pfm", "--reference", "r.pfm"]),
+    );
+}
+
+/// `denoise in.exr --out in.exr` denoised the image over itself; `merge
+/// m.albedo.pfm --out m.pfm` wrote the merged albedo over the part; and
+/// `converge` wrote its CSV over a scene named `converge.csv`. Refused,
+/// naming the flag and the file, with every file as it was.
+#[test]
+fn denoise_merge_and_converge_refuse_an_output_that_is_an_input() {
+    let dir = inputs_dir("commands-over-input");
+    let rgb = vec![[0.25f32; 3]; 64];
+    wavetrace::output::write_image(&dir.join("in.exr"), 8, 8, &rgb).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("in.exr", dir.join("o.normal.pfm")).unwrap();
+    for (args, flag, file) in [
+        (
+            vec!["denoise", "in.exr", "--out", "in.exr"],
+            "--out",
+            "in.exr",
+        ),
+        (
+            vec!["denoise", "in.exr", "--out", "./in.exr"],
+            "--out",
+            "in.exr",
+        ),
+        (vec!["denoise", "r.pfm", "--out", "r.pfm"], "--out", "r.pfm"),
+    ] {
+        refused_keeping_inputs(&dir, &args, flag, file);
+    }
+    #[cfg(unix)]
+    refused_keeping_inputs(
+        &dir,
+        &["denoise", "in.exr", "--out", "o.pfm"],
+        "an AOV file of --out",
+        "o.normal.pfm",
+    );
+
+    // A part with an albedo AOV, named as the merged image's albedo file.
+    run_ok(
+        &dir,
+        &[
+            &SMALL[..],
+            &["s.toml", "--aov", "albedo", "--partial", "m.wtacc"],
+        ]
+        .concat(),
+    );
+    std::fs::rename(dir.join("m.wtacc"), dir.join("m.albedo.pfm")).unwrap();
+    refused_keeping_inputs(
+        &dir,
+        &["merge", "m.albedo.pfm", "--out", "m.pfm"],
+        "an AOV file of --out",
+        "m.albedo.pfm",
+    );
+    // converge: its CSV over the scene (also through a folder that does
+    // not exist yet), its JSON (a link) over the reference.
+    std::fs::copy(dir.join("s.toml"), dir.join("converge.csv")).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("r.pfm", dir.join("c.json")).unwrap();
+    let study = ["--width", "8", "--height", "8", "--spp", "2"];
+    for (args, file) in [
+        (
+            vec!["converge", "converge.csv", "--reference", "r.pfm"],
+            "converge.csv",
+        ),
+        (
+            vec![
+                "converge",
+                "converge.csv",
+                "--reference",
+                "r.pfm",
+                "--out-dir",
+                "new/..",
+            ],
+            "converge.csv",
+        ),
+        (
+            vec![
+                "converge",
+                "s.toml",
+                "--reference",
+                "r.pfm",
+                "--prefix",
+                "c",
+            ],
+            "c.json",
+        ),
+    ] {
+        let args = [&args[..], &study[..]].concat();
+        refused_keeping_inputs(&dir, &args, "--out-dir", file);
+    }
+}
+
+// --- 8. Outputs that cannot be written ---
+
+/// `--stats /dev/full` was refused only after the render, with the image
+/// written: a device other than `/dev/null` or a terminal is now refused
+/// as an output before any work, like a directory or a missing folder.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_cannot_take_a_file_is_refused_before_the_render() {
+    let dir = inputs_dir("unwritable");
+    std::fs::create_dir(dir.join("d")).unwrap();
+    let render = |flag: &'static str, file: &'static str| {
+        [&SMALL[..], &["s.toml", "--out", "o.png", flag, file]].concat()
+    };
+    for (args, file, why) in [
+        (render("--stats", "/dev/full"), "/dev/full", "device (1:7)"),
+        (render("--stats", "/dev/zero"), "/dev/zero", "device (1:5)"),
+        (render("--stats", "/dev/urandom"), "/dev/urandom", "device"),
+        (
+            vec!["bench", "--tiny", "--json", "/dev/full"],
+            "/dev/full",
+            "device",
+        ),
+        (render("--stats", "d"), "d", "is a directory"),
+        (render("--stats", "no/s.json"), "no/s.json", ""),
+    ] {
+        refused_keeping_inputs(&dir, &args, file, why);
+    }
+    // /dev/null takes any output.
+    run_ok(&dir, &render("--stats", "/dev/null"));
+}
+
+/// A `--stats` file that fails only when written, after the render (here
+/// the file-size limit, `ulimit -f`, as a full disk would), leaves the
+/// image written whole, no half-written stats file, and exits 1 naming
+/// the file.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_stats_file_that_fails_after_the_render_leaves_the_image() {
+    use std::os::unix::process::CommandExt;
+    let dir = inputs_dir("late-failure");
+    let mut cmd = wavetrace(
+        &dir,
+        &[
+            &SMALL[..],
+            &["s.toml", "--out", "o.png", "--stats", "st.json"],
+        ]
+        .concat(),
+    );
+    // SAFETY: only async-signal-safe calls (setrlimit, signal) between
+    // fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 1024,
+                rlim_max: 1024,
+            };
+            libc::setrlimit(libc::RLIMIT_FSIZE, &limit);
+            // Writing past the limit fails with EFBIG instead of a signal.
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let o = finish(&mut cmd, PATIENCE);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let e = stderr(&o);
+    assert!(e.contains("st.json") && e.contains("too large"), "{e}");
+    let image = image::open(dir.join("o.png")).unwrap();
+    assert_eq!((image.width(), image.height()), (8, 8));
+    assert!(!dir.join("st.json").exists());
+    assert!(
+        !dir.files().iter().any(|f| f.ends_with(".tmp")),
+        "{:?}",
+        dir.files()
+    );
+}

@@ -80,6 +80,8 @@ pub fn run(args: BenchArgs) -> Result<ExitCode> {
         SuiteSize::Full
     };
     if let Some(json) = &args.json {
+        // The only file written; none is read (the scenes are built in,
+        // and --compare, which reads, writes nothing).
         check_writable(json)?;
     }
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -165,8 +165,6 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
         }
         None => None,
     };
-    std::fs::create_dir_all(&args.out_dir)
-        .map_err(|e| Error::Settings(format!("{}: cannot create: {e}", args.out_dir.display())))?;
     let file = |suffix: &str| args.out_dir.join(format!("{}{suffix}", args.prefix));
     let outputs = [
         ".csv",
@@ -177,8 +175,25 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
         "-time.svg",
         "-crops.png",
     ];
-    for o in outputs {
-        crate::fs::check_writable(&file(o))?;
+    // No file written may be an input (the scene, a mesh, the reference)
+    // or another output; checked before the folder is made.
+    let mut files: Vec<PathBuf> = outputs.iter().map(|o| file(o)).collect();
+    if args.reference_spp.is_some() {
+        files.push(file("-reference.exr"));
+    }
+    let mut inputs = crate::cli::render::scene_inputs(&scene);
+    if let Some(reference) = &args.reference {
+        inputs.push(("--reference", reference));
+    }
+    let named: Vec<(&str, &std::path::Path)> = files
+        .iter()
+        .map(|p| ("a file of converge --out-dir", p.as_path()))
+        .collect();
+    crate::fs::check_outputs(&inputs, &named)?;
+    std::fs::create_dir_all(&args.out_dir)
+        .map_err(|e| Error::Settings(format!("{}: cannot create: {e}", args.out_dir.display())))?;
+    for path in &files {
+        crate::fs::check_writable(path)?;
     }
 
     let show = !args.quiet && std::io::stderr().is_terminal();

@@ -2,9 +2,9 @@
 
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
-use crate::fs::check_writable;
+use crate::fs::{check_outputs, check_writable};
 use crate::output::{
-    ImageFormat, aov_layer, check_output_format, read_exr_layer, read_radiance,
+    ImageFormat, aov_layer, aov_path, check_output_format, read_exr_layer, read_radiance,
     write_image_with_aovs,
 };
 use crate::scene::Aov;
@@ -58,6 +58,23 @@ pub fn run(args: DenoiseArgs) -> Result<()> {
             args.out.display()
         )));
     }
+    // The AOV files beside a PNG or PFM --out: every one an EXR input
+    // might hold as a layer.
+    let aov_files: Vec<PathBuf> = if ImageFormat::from_path(&args.input)? == ImageFormat::Exr {
+        Aov::ALL
+            .iter()
+            .filter_map(|&a| aov_path(&args.out, a))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut outputs = vec![("--out", args.out.as_path())];
+    outputs.extend(
+        aov_files
+            .iter()
+            .map(|f| ("an AOV file of --out", f.as_path())),
+    );
+    check_outputs(&[("the image to denoise", &args.input)], &outputs)?;
     check_writable(&args.out)?;
     let image = read_radiance(&args.input, "the image to denoise")?;
     let mut denoiser = Denoiser::new()?;

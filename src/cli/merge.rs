@@ -2,11 +2,12 @@
 
 use crate::cli::ViewArgs;
 use crate::error::Result;
-use crate::fs::check_writable;
-use crate::output::{check_output_format, check_partial_path, write_output_viewed};
-use crate::run::merge::{check_outputs, merge_files};
+use crate::fs::{check_outputs, check_writable};
+use crate::output::{aov_path, check_output_format, check_partial_path, write_output_viewed};
+use crate::run::merge::merge_files;
+use crate::scene::Aov;
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Options of `wavetrace merge`.
 #[derive(Clone, Debug, Args)]
@@ -39,16 +40,28 @@ pub struct MergeArgs {
 
 /// Run `wavetrace merge`: check the outputs, merge, then write.
 pub fn run(args: MergeArgs) -> Result<()> {
-    let mut outputs = vec![("--out", args.out.as_path())];
-    if let Some(p) = &args.partial {
-        outputs.push(("--partial", p.as_path()));
-    }
-    check_outputs(&args.parts, &outputs)?;
     check_output_format(&args.out)?;
     let view = args.view.transform(Some(&args.out))?;
-    check_writable(&args.out)?;
     if let Some(p) = &args.partial {
         check_partial_path(p)?;
+    }
+    // The AOV files beside a PNG or PFM --out: every one the parts might
+    // hold (which they hold is known only once they are read).
+    let aov_files: Vec<PathBuf> = Aov::ALL
+        .iter()
+        .filter_map(|&a| aov_path(&args.out, a))
+        .collect();
+    let inputs: Vec<(&str, &Path)> = args.parts.iter().map(|p| ("a part", p.as_path())).collect();
+    let mut outputs = vec![("--out", args.out.as_path())];
+    outputs.extend(
+        aov_files
+            .iter()
+            .map(|f| ("an AOV file of --out", f.as_path())),
+    );
+    outputs.extend(args.partial.as_deref().map(|p| ("--partial", p)));
+    check_outputs(&inputs, &outputs)?;
+    check_writable(&args.out)?;
+    if let Some(p) = &args.partial {
         check_writable(p)?;
     }
     let merged = merge_files(&args.parts, args.spp, args.allow_partial)?;

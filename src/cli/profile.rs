@@ -54,15 +54,23 @@ impl Profile {
             .map_err(|e| Error::Settings(format!("profile {origin}: {}", e.to_string().trim())))
     }
 
+    /// The file that `--profile NAME` reads: `NAME` when it is not a
+    /// built-in profile and has a `/` or ends in `.toml`.
+    pub fn file(name: &str) -> Option<&Path> {
+        let is_file = !BUILT_IN.iter().any(|(n, _)| *n == name)
+            && (name.contains('/') || name.ends_with(".toml"));
+        is_file.then(|| Path::new(name))
+    }
+
     /// A built-in profile by name, or a profile file by path (anything
     /// with a `/` or ending in `.toml`).
     pub fn load(name: &str) -> Result<Self> {
         if let Some((_, text)) = BUILT_IN.iter().find(|(n, _)| *n == name) {
             return Self::parse(text, name);
         }
-        if name.contains('/') || name.ends_with(".toml") {
-            let text = std::fs::read_to_string(Path::new(name))
-                .map_err(|source| FileError::new(Path::new(name), source))?;
+        if let Some(path) = Self::file(name) {
+            let text =
+                std::fs::read_to_string(path).map_err(|source| FileError::new(path, source))?;
             return Self::parse(&text, name);
         }
         let known: Vec<&str> = BUILT_IN.iter().map(|(n, _)| *n).collect();

@@ -8,7 +8,7 @@ use crate::cli::stats::{RenderStats, Stages};
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film, WtaccError};
-use crate::fs::{check_writable, same_file, write_atomic};
+use crate::fs::{check_outputs, check_writable, same_file, write_atomic};
 use crate::metrics::ImageErrors;
 use crate::output::view::ViewTransform;
 use crate::output::{
@@ -345,20 +345,12 @@ fn plan(args: RenderArgs) -> Result<Job> {
     let mut aov_files = Vec::new();
     if let Some(out) = &out {
         check_output_format(out)?;
-        check_writable(out)?;
         aov_files.extend(settings.aovs.iter().filter_map(|a| aov_path(out, a)));
-        for file in &aov_files {
-            check_writable(file)?;
-        }
     }
     if let Some(partial) = &partial {
         check_partial_path(partial)?;
-        check_writable(partial)?;
     }
-    if let Some(stats) = &args.stats {
-        check_writable(stats)?;
-    }
-    let denoiser = if args.denoise {
+    if args.denoise {
         match &out {
             Some(out) if !crate::output::is_partial_path(out) => {}
             _ => {
@@ -367,21 +359,10 @@ fn plan(args: RenderArgs) -> Result<Job> {
                 ));
             }
         }
-        if let Some(noisy) = &args.keep_noisy {
-            check_output_format(noisy)?;
-            check_writable(noisy)?;
-            let mut files = vec![("--out", out.as_deref()), ("--keep-noisy", Some(noisy))];
-            files.extend(
-                aov_files
-                    .iter()
-                    .map(|f| ("an AOV file of --out", Some(f.as_path()))),
-            );
-            check_distinct(&files)?;
-        }
-        Some(Denoiser::new()?)
-    } else {
-        None
-    };
+    }
+    if let Some(noisy) = &args.keep_noisy {
+        check_output_format(noisy)?;
+    }
 
     let meta = AccMeta {
         settings_hash: settings.image_hash(&scene),
@@ -394,6 +375,10 @@ fn plan(args: RenderArgs) -> Result<Job> {
             "--checkpoint-every needs --checkpoint FILE (or --resume FILE)".into(),
         ));
     }
+    let resumes_checkpoint = match (&args.resume, &checkpoint) {
+        (Some(r), Some(c)) => same_file(r, c),
+        _ => false,
+    };
     if let Some(path) = &checkpoint {
         if out.as_deref().is_some_and(|out| same_file(path, out)) {
             return Err(Error::Settings(format!(
@@ -408,28 +393,51 @@ fn plan(args: RenderArgs) -> Result<Job> {
                 path.display()
             )));
         }
-        let resumes_it = args.resume.as_ref().is_some_and(|r| same_file(r, path));
-        if !resumes_it && path.exists() {
+        if !resumes_checkpoint && path.exists() {
             return Err(Error::Settings(format!(
                 "{}: the checkpoint file exists and may hold another render's work; \
                  continue it with --resume {0}, or remove it",
                 path.display()
             )));
         }
-        check_writable(path)?;
     }
-    let mut files = vec![
-        ("--out", out.as_deref()),
-        ("--partial", partial.as_deref()),
-        ("--stats", args.stats.as_deref()),
-        ("the checkpoint", checkpoint.as_deref()),
-    ];
-    files.extend(
+    // No output may be an input or another output; then each must be
+    // writable. Both before any work and before any file is made.
+    let mut inputs = scene_inputs(&scene);
+    if let Some(profile) = args.profile.as_deref().and_then(Profile::file) {
+        inputs.push(("--profile", profile));
+    }
+    if let Some(reference) = &args.reference {
+        inputs.push(("--reference", reference));
+    }
+    if let Some(resume) = args.resume.as_deref().filter(|_| !resumes_checkpoint) {
+        inputs.push(("--resume", resume));
+    }
+    let mut outputs: Vec<(&str, &std::path::Path)> = Vec::new();
+    outputs.extend(out.as_deref().map(|p| ("--out", p)));
+    outputs.extend(
         aov_files
             .iter()
-            .map(|f| ("an AOV file of --out", Some(f.as_path()))),
+            .map(|f| ("an AOV file of --out", f.as_path())),
     );
-    check_distinct(&files)?;
+    outputs.extend(args.keep_noisy.as_deref().map(|p| ("--keep-noisy", p)));
+    outputs.extend(partial.as_deref().map(|p| ("--partial", p)));
+    outputs.extend(args.stats.as_deref().map(|p| ("--stats", p)));
+    let checkpoint_flag = if args.checkpoint.is_some() {
+        "--checkpoint"
+    } else {
+        "the checkpoint (--resume)"
+    };
+    outputs.extend(checkpoint.as_deref().map(|p| (checkpoint_flag, p)));
+    check_outputs(&inputs, &outputs)?;
+    for (_, path) in &outputs {
+        check_writable(path)?;
+    }
+    let denoiser = if args.denoise {
+        Some(Denoiser::new()?)
+    } else {
+        None
+    };
     // The checkpoint to continue is read and checked in full before any
     // work: a missing, truncated, corrupt or foreign one is refused here and
     // left as it is. Its samples must lie within this render's sample range
@@ -547,24 +555,22 @@ fn memory_limit_from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Option<
         })
 }
 
-/// Refuse two outputs that name the same file: one would overwrite the
-/// other (a checkpoint overwritten by the stats, say).
-fn check_distinct(files: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
-    let files: Vec<(&str, &std::path::Path)> = files
+/// The files a loaded scene was read from, each with its role in
+/// messages: the scene file, then every file it loaded.
+pub(crate) fn scene_inputs(scene: &Scene) -> Vec<(&'static str, &std::path::Path)> {
+    scene
+        .sources
         .iter()
-        .filter_map(|(flag, p)| p.map(|p| (*flag, p)))
-        .collect();
-    for (i, (a, pa)) in files.iter().enumerate() {
-        for (b, pb) in &files[i + 1..] {
-            if same_file(pa, pb) {
-                return Err(Error::Settings(format!(
-                    "{}: {a} and {b} name the same file; one would overwrite the other",
-                    pa.display()
-                )));
-            }
-        }
-    }
-    Ok(())
+        .enumerate()
+        .map(|(i, p)| {
+            let role = if i == 0 {
+                "the scene"
+            } else {
+                "a file the scene reads"
+            };
+            (role, p.as_path())
+        })
+        .collect()
 }
 
 /// Run `wavetrace render`: the exit status, or an error for the caller to

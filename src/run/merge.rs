@@ -163,31 +163,6 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
     })
 }
 
-/// Refuse, before any work, outputs that would overwrite one of the
-/// `parts` being merged, or each other: `outputs` are each a label for
-/// the error (such as `--out`) and a path.
-pub fn check_outputs(parts: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()> {
-    for (i, (label, out)) in outputs.iter().enumerate() {
-        if let Some(part) = parts.iter().find(|p| crate::fs::same_file(p, out)) {
-            return Err(Error::Settings(format!(
-                "{}: {label} names the input {}; the merge would overwrite one of its parts",
-                out.display(),
-                part.display()
-            )));
-        }
-        if let Some((other, _)) = outputs[i + 1..]
-            .iter()
-            .find(|(_, p)| crate::fs::same_file(p, out))
-        {
-            return Err(Error::Settings(format!(
-                "{}: {label} and {other} name the same file; one would overwrite the other",
-                out.display()
-            )));
-        }
-    }
-    Ok(())
-}
-
 /// The most missing shards a merge lists (as Slurm array task IDs).
 pub const MAX_LISTED_SHARDS: usize = 10_000;
 

@@ -199,6 +199,9 @@ pub struct Asset {
     /// The material of meshes without one: glTF's default (white,
     /// metallic 1, roughness 1) unless the loader sets another.
     pub default_material: PbrMaterial,
+    /// The files read besides the asset's own (a glTF's external buffers
+    /// and images).
+    pub sources: Vec<std::path::PathBuf>,
 }
 
 impl Asset {

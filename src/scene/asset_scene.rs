@@ -64,7 +64,7 @@ pub fn load(path: &Path, camera: Option<&str>) -> Result<(Scene, Vec<String>), S
         .file_stem()
         .map_or("asset".into(), |s| s.to_string_lossy().into_owned());
     let mut scene = scene_from_asset(&asset, &name, &path.display().to_string(), camera)?;
-    scene.sources.push(path.to_path_buf());
+    scene.sources.insert(0, path.to_path_buf());
     Ok((scene, asset.warnings))
 }
 
@@ -160,6 +160,9 @@ pub fn place(
             ..m
         },
     };
+    for file in &asset.sources {
+        b.source(file);
+    }
     let first = b.materials().len() as u32;
     let first_texture = b.textures(&asset.textures);
     for m in &asset.materials {

@@ -683,7 +683,9 @@ fn mesh(
             e.message, at.file, at.line, at.column
         ),
     })?;
-    b.source(&path);
+    for file in &obj.sources {
+        b.source(file);
+    }
     b.room_for(obj.triangles.len() as u64, "mesh", &at)?;
     let mtl_index: Vec<u32> = (obj.materials.iter())
         .map(|om| {

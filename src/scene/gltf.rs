@@ -106,11 +106,13 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
         buffers: Vec::new(),
         asset: Asset::default(),
         textures: HashMap::new(),
+        files: Default::default(),
     };
     r.warn_unread_extensions();
     r.buffers = r.load_buffers(gltf.blob.as_deref())?;
     r.read_materials()?;
     r.read_scene()?;
+    r.asset.sources = r.files.into_inner();
     Ok(r.asset)
 }
 
@@ -153,6 +155,8 @@ struct Reader<'a> {
     asset: Asset,
     /// Decoded textures by (image, colour space).
     textures: HashMap<(usize, bool), u32>,
+    /// The external files read (buffers, images).
+    files: std::cell::RefCell<Vec<std::path::PathBuf>>,
 }
 
 impl Reader<'_> {
@@ -191,6 +195,7 @@ impl Reader<'_> {
         })?;
         let name = percent_decode(uri);
         let path = dir.join(&name);
+        self.files.borrow_mut().push(path.clone());
         std::fs::read(&path)
             .map_err(|e| self.err(at, format!("cannot read {}: {e}", path.display())))
     }

@@ -225,9 +225,11 @@ pub struct Scene {
     pub max_depth: u32,
     /// What the scene's `[integrator]` table asks for besides the depth.
     pub options: RenderOptions,
-    /// The files the scene was read from (its scene file, meshes and
-    /// assets), in the order they were read; empty for text parsed from
-    /// memory. Outputs must never be written over one of them.
+    /// The files the scene was read from: its scene file first, then its
+    /// meshes and assets with every file they read (MTL files, a glTF's
+    /// external buffers and images), in the order they were read; empty
+    /// for text parsed from memory. Outputs must never be written over one
+    /// of them ([`crate::fs::check_outputs`]).
     pub sources: Vec<std::path::PathBuf>,
     /// The light from infinitely far away that rays leaving the scene see
     /// (`None`: they see black).

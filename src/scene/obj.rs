@@ -53,6 +53,8 @@ pub struct ObjMesh {
     pub material: Vec<Option<usize>>,
     /// The materials of the file's `mtllib`s (empty unless asked for).
     pub materials: Vec<ObjMaterial>,
+    /// The files read: the OBJ, then its MTL files (when asked for).
+    pub sources: Vec<std::path::PathBuf>,
 }
 
 /// Load `path`; with `with_mtl`, also its `mtllib` materials (paths
@@ -71,11 +73,13 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
 
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mtl_error: RefCell<Option<ObjError>> = RefCell::new(None);
+    let sources = RefCell::new(vec![path.to_path_buf()]);
     let loader = |mtl: &Path| -> tobj::MTLLoadResult {
         if !with_mtl {
             return Ok((Vec::new(), Default::default()));
         }
         let mtl_path = dir.join(mtl);
+        sources.borrow_mut().push(mtl_path.clone());
         let result = load_mtl(&mtl_path);
         match result {
             Ok(r) => r,
@@ -114,6 +118,7 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
 
     let mut mesh = ObjMesh {
         materials,
+        sources: sources.into_inner(),
         ..Default::default()
     };
     // The precheck's faces of three corners or more, in file order: tobj
@@ -257,6 +262,8 @@ pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::Asse
         meshes,
         instances,
         materials,
+        // Its MTL files (the OBJ is the asset's own file).
+        sources: obj.sources[1..].to_vec(),
         ..Asset::default()
     })
 }
