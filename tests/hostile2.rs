@@ -467,7 +467,7 @@ fn a_render_refuses_an_output_that_is_an_input() {
         std::fs::hard_link(dir.join("meshes/crate.mtl"), dir.join("mtl.json")).unwrap();
     }
     let with = |extra: &[&'static str]| [&SMALL[..], extra].concat();
-    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+    let mut cases: Vec<(Vec<&str>, &str, &str)> = vec![
         (
             with(&["s.toml", "--out", "o.png", "--stats", "s.toml"]),
             "--stats",
@@ -561,6 +561,14 @@ fn a_render_refuses_an_output_that_is_an_input() {
             "n.pfm",
         ),
     ];
+    // The environment image, of the scene or of --env.
+    cases.push((
+        with(&[
+            "s.toml", "--env", "r.pfm", "--out", "o.png", "--stats", "r.pfm",
+        ]),
+        "--stats",
+        "r.pfm",
+    ));
     // The reference of the AOV case, named like an AOV file of --out.
     std::fs::copy(dir.join("r.pfm"), dir.join("ref.albedo.pfm")).unwrap();
     for (args, flag, file) in &cases {

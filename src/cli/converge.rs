@@ -181,7 +181,7 @@ pub fn run(args: ConvergeArgs) -> Result<()> {
     if args.reference_spp.is_some() {
         files.push(file("-reference.exr"));
     }
-    let mut inputs = crate::cli::render::scene_inputs(&scene);
+    let mut inputs = crate::cli::render::scene_inputs(&scene, args.scene.as_deref());
     if let Some(reference) = &args.reference {
         inputs.push(("--reference", reference));
     }

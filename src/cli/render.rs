@@ -403,7 +403,7 @@ fn plan(args: RenderArgs) -> Result<Job> {
     }
     // No output may be an input or another output; then each must be
     // writable. Both before any work and before any file is made.
-    let mut inputs = scene_inputs(&scene);
+    let mut inputs = scene_inputs(&scene, args.scene.as_deref());
     if let Some(profile) = args.profile.as_deref().and_then(Profile::file) {
         inputs.push(("--profile", profile));
     }
@@ -555,15 +555,18 @@ fn memory_limit_from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Option<
         })
 }
 
-/// The files a loaded scene was read from, each with its role in
-/// messages: the scene file, then every file it loaded.
-pub(crate) fn scene_inputs(scene: &Scene) -> Vec<(&'static str, &std::path::Path)> {
+/// The files a loaded scene was read from ([`Scene::sources`]: the scene
+/// file given as `scene`, its meshes, assets and environment image), each
+/// with its role in messages.
+pub(crate) fn scene_inputs<'a>(
+    scene: &'a Scene,
+    scene_file: Option<&std::path::Path>,
+) -> Vec<(&'static str, &'a std::path::Path)> {
     scene
         .sources
         .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let role = if i == 0 {
+        .map(|p| {
+            let role = if Some(p.as_path()) == scene_file {
                 "the scene"
             } else {
                 "a file the scene reads"
