@@ -1,4 +1,7 @@
-//! The TOML scene format (documented in `scenes/README.md`).
+//! The TOML scene format (documented in `scenes/README.md`): one front
+//! end of the [scene builder](super::builder). Each table is read by a
+//! function of its own, which checks its values where they are written and
+//! hands them to the builder with their place.
 //!
 //! Every error names the file, the line and column, and the field. Unknown
 //! keys are refused, not ignored: a typo never silently changes a render.
@@ -24,6 +27,7 @@ struct SceneFile {
     camera: Spanned<CameraFile>,
     #[serde(default)]
     integrator: IntegratorFile,
+    #[serde(default)]
     materials: BTreeMap<String, Spanned<MaterialFile>>,
     #[serde(default, rename = "triangle")]
     triangles: Vec<Spanned<TriangleFile>>,
@@ -35,6 +39,8 @@ struct SceneFile {
     meshes: Vec<Spanned<MeshFile>>,
     #[serde(default, rename = "generate")]
     generated: Vec<Spanned<GenerateFile>>,
+    #[serde(default, rename = "asset")]
+    assets: Vec<Spanned<AssetFile>>,
     environment: Option<Spanned<super::environment::EnvironmentFile>>,
 }
 
@@ -111,6 +117,21 @@ struct MeshFile {
     scale: Option<Spanned<ScaleFile>>,
     rotate_deg: Option<Spanned<Exact<[f32; 3]>>>,
     translate: Option<Spanned<Exact<[f32; 3]>>>,
+}
+
+/// An `[[asset]]`: a mesh file of any format the mesh-source seam reads,
+/// with its materials, placed by TRS or by a matrix.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AssetFile {
+    #[allow(dead_code)] // a label for people reading the file
+    name: Option<String>,
+    file: Spanned<String>,
+    scale: Option<Spanned<ScaleFile>>,
+    rotate_deg: Option<Spanned<Exact<[f32; 3]>>>,
+    translate: Option<Spanned<Exact<[f32; 3]>>>,
+    /// Object to world, row by row (the last row `[0, 0, 0, 1]`).
+    matrix: Option<Spanned<Exact<[[f32; 4]; 4]>>>,
 }
 
 #[derive(Deserialize)]
@@ -237,7 +258,7 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     camera(&t, &raw.camera, &mut b)?;
     let names = materials(&t, &raw.materials, &mut b)?;
     // Geometry: triangles, then quads, then OBJ meshes, then generated
-    // meshes, then spheres, each in file order.
+    // meshes, then assets, then spheres, each in file order.
     polygons(&t, &raw, ccw, &names, &mut b)?;
     for (i, m) in raw.meshes.iter().enumerate() {
         mesh(&t, i, m.get_ref(), &names, &mut b)?;
@@ -245,13 +266,16 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     for (i, g) in raw.generated.iter().enumerate() {
         generate(&t, i, g.get_ref(), &names, &mut b)?;
     }
+    for (i, a) in raw.assets.iter().enumerate() {
+        asset(&t, i, a.get_ref(), &mut b)?;
+    }
     for (i, s) in raw.spheres.iter().enumerate() {
         sphere(&t, i, s.get_ref(), &names, &mut b)?;
     }
     let whole = Origin::file(file);
     if b.is_empty() {
         return Err(whole.error(
-            "the scene has no geometry (no [[triangle]], [[quad]], [[sphere]], [[mesh]] or [[generate]])",
+            "the scene has no geometry (no [[triangle]], [[quad]], [[sphere]], [[mesh]], [[generate]] or [[asset]])",
         ));
     }
     let (max_depth, options) = integrator(&t, &raw.integrator)?;
@@ -800,6 +824,64 @@ fn generated(
             format!("unknown kind {other:?} (known: \"sphere\", \"terrain\")"),
         )),
     }
+}
+
+/// One `[[asset]]`: a mesh file read through the mesh-source seam
+/// ([`mesh_source`](super::mesh_source)), its materials added to the
+/// scene's (named `file:name`, mapped as an asset rendered alone maps
+/// them) and its meshes placed by the entry's transform after the file's
+/// own. The file's cameras and lights are not used: the scene has its own.
+fn asset(t: &Toml, i: usize, a: &AssetFile, b: &mut SceneBuilder) -> Result<(), SceneError> {
+    let what = format!("asset[{i}]");
+    let placement = asset_placement(t, &what, a)?;
+    let at = t.origin(a.file.span(), &format!("{what}.file"));
+    let path = t.base().join(a.file.get_ref());
+    let asset = super::mesh_source::load(&path).map_err(|e| {
+        let mut err = super::asset_scene::scene_error(e);
+        err.message = format!(
+            "{} (the asset of {what}, {}:{}:{})",
+            err.message, at.file, at.line, at.column
+        );
+        err
+    })?;
+    b.source(&path);
+    b.room_for(asset.instanced_triangles() as u64, "asset", &at)?;
+    super::asset_scene::place(b, &asset, placement, a.file.get_ref(), &at)
+}
+
+/// An `[[asset]]`'s placement: its `matrix` (rows; affine and
+/// invertible), or its scale, rotation and translation; `None` where it
+/// gives none (the file's own placement is kept exactly).
+fn asset_placement(t: &Toml, what: &str, a: &AssetFile) -> Result<Option<glam::Mat4>, SceneError> {
+    let trs = [
+        a.scale.as_ref().map(|s| s.span()),
+        a.rotate_deg.as_ref().map(|s| s.span()),
+        a.translate.as_ref().map(|s| s.span()),
+    ];
+    let Some(matrix) = &a.matrix else {
+        if trs.iter().all(Option::is_none) {
+            return Ok(None);
+        }
+        let affine = transform(t, what, &a.scale, &a.rotate_deg, &a.translate)?;
+        return Ok(Some(glam::Mat4::from(affine)));
+    };
+    let field = format!("{what}.matrix");
+    let err = |m: &str| Err(t.err(matrix.span(), &field, m));
+    if trs.iter().any(Option::is_some) {
+        return err("give either `matrix` or `scale`, `rotate_deg` and `translate`, not both");
+    }
+    let rows = matrix.get_ref().0;
+    if !rows.iter().flatten().all(|x| x.is_finite()) {
+        return err("must be finite numbers");
+    }
+    if rows[3] != [0.0, 0.0, 0.0, 1.0] {
+        return err("the last row must be [0, 0, 0, 1] (an affine transform)");
+    }
+    let m = glam::Mat4::from_cols_array_2d(&rows).transpose();
+    if !(m.determinant() != 0.0 && m.determinant().is_finite()) {
+        return err("must be invertible (its determinant is 0)");
+    }
+    Ok(Some(m))
 }
 
 /// One `[[sphere]]`.
