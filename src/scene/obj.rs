@@ -194,7 +194,7 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
 
 /// Reads the OBJ at `path` with its MTL materials as an [`Asset`](super::asset::Asset) (the
 /// mesh-source seam's form; `[[asset]] file = "x.obj"`): one mesh per
-/// material, its triangles' corners unshared, each material diffuse
+/// material, its triangles' corners unshared, each material
 /// (metallic 0, roughness 1) of base colour `Kd` and emission `Ke`; faces
 /// without a material take the asset's default one. Corners of faces
 /// without `vn` get zero normals (flat) in a mesh where others have them.
