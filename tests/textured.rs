@@ -1,0 +1,771 @@
+//! Textured assets in the engines: a checkerboard lands where its
+//! texture coordinates put it, both engines trace the same paths on a
+//! textured scene, images are byte-identical across threads, batch
+//! sizes, kernel widths, passes and shards, a glTF renders as the same
+//! scene written in TOML, and the shipped asset `scenes/textured.glb` is
+//! what [`shipped_asset`] writes.
+//!
+//! The glTF files are written here by [`Gltf`], a small GLB writer.
+
+mod common;
+
+use common::TempDir;
+use glam::{Quat, Vec3};
+use std::path::Path;
+use wavetrace::film::Film;
+use wavetrace::render::{Engine, RenderSettings, Renderer};
+use wavetrace::scene::camera::Camera;
+use wavetrace::scene::{Integrator, Scene, asset_scene};
+
+// ---------------------------------------------------------------------------
+// A GLB writer
+
+/// A glTF asset being written: one binary buffer and the JSON arrays.
+#[derive(Default)]
+struct Gltf {
+    bin: Vec<u8>,
+    views: Vec<String>,
+    accessors: Vec<String>,
+    meshes: Vec<String>,
+    materials: Vec<String>,
+    textures: Vec<String>,
+    images: Vec<String>,
+    samplers: Vec<String>,
+    nodes: Vec<String>,
+    cameras: Vec<String>,
+}
+
+/// A texture as a material refers to it: `(texture index, extra JSON)`.
+type Tex = Option<(usize, &'static str)>;
+
+/// A metallic-roughness material.
+struct Mat {
+    base: [f32; 4],
+    metallic: f32,
+    roughness: f32,
+    base_texture: Tex,
+    mr_texture: Tex,
+    emissive: [f32; 3],
+    strength: f32,
+}
+
+impl Default for Mat {
+    fn default() -> Self {
+        Self {
+            base: [1.0; 4],
+            metallic: 0.0,
+            roughness: 1.0,
+            base_texture: None,
+            mr_texture: None,
+            emissive: [0.0; 3],
+            strength: 1.0,
+        }
+    }
+}
+
+fn push(list: &mut Vec<String>, item: String) -> usize {
+    list.push(item);
+    list.len() - 1
+}
+
+impl Gltf {
+    /// A buffer view of `bytes` (4-byte aligned).
+    fn view(&mut self, bytes: &[u8]) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let item = format!(
+            r#"{{"buffer": 0, "byteOffset": {}, "byteLength": {}}}"#,
+            self.bin.len(),
+            bytes.len()
+        );
+        self.bin.extend_from_slice(bytes);
+        push(&mut self.views, item)
+    }
+
+    /// An accessor of `n`-component float vectors.
+    fn floats(&mut self, values: &[f32], n: usize) -> usize {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let ty = ["SCALAR", "VEC2", "VEC3", "VEC4"][n - 1];
+        let count = values.len() / n;
+        let bounds = if n == 3 {
+            let col = |k: usize| values.iter().skip(k).step_by(3).copied();
+            let lo: Vec<f32> = (0..3)
+                .map(|k| col(k).fold(f32::INFINITY, f32::min))
+                .collect();
+            let hi: Vec<f32> = (0..3)
+                .map(|k| col(k).fold(f32::NEG_INFINITY, f32::max))
+                .collect();
+            format!(r#", "min": {lo:?}, "max": {hi:?}"#)
+        } else {
+            String::new()
+        };
+        let item = format!(
+            r#"{{"bufferView": {view}, "componentType": 5126, "count": {count}, "type": "{ty}"{bounds}}}"#
+        );
+        push(&mut self.accessors, item)
+    }
+
+    /// A triangle mesh: positions, texture coordinates, optional vertex
+    /// colours, triangles; of material `material`.
+    fn mesh(
+        &mut self,
+        positions: &[Vec3],
+        uv: &[[f32; 2]],
+        colours: Option<&[[f32; 4]]>,
+        triangles: &[[u32; 3]],
+        material: usize,
+    ) -> usize {
+        let p: Vec<f32> = positions.iter().flat_map(|v| v.to_array()).collect();
+        let p = self.floats(&p, 3);
+        let t: Vec<f32> = uv.iter().flatten().copied().collect();
+        let t = self.floats(&t, 2);
+        let mut attributes = format!(r#""POSITION": {p}, "TEXCOORD_0": {t}"#);
+        if let Some(c) = colours {
+            let c: Vec<f32> = c.iter().flatten().copied().collect();
+            let c = self.floats(&c, 4);
+            attributes += &format!(r#", "COLOR_0": {c}"#);
+        }
+        let idx: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let view = self.view(&idx);
+        let count = triangles.len() * 3;
+        let item = format!(
+            r#"{{"bufferView": {view}, "componentType": 5125, "count": {count}, "type": "SCALAR"}}"#
+        );
+        let indices = push(&mut self.accessors, item);
+        let item = format!(
+            r#"{{"primitives": [{{"attributes": {{{attributes}}}, "indices": {indices}, "material": {material}}}]}}"#
+        );
+        push(&mut self.meshes, item)
+    }
+
+    /// A quad `corners[0..4]` (counter-clockwise seen from its front) with
+    /// texture coordinates `uv` at the corners.
+    fn quad(&mut self, corners: [Vec3; 4], uv: [[f32; 2]; 4], material: usize) -> usize {
+        self.mesh(&corners, &uv, None, &[[0, 1, 2], [0, 2, 3]], material)
+    }
+
+    /// A cube of side `side` centred at the origin, each face's texture
+    /// coordinates the whole image, (0, 0) at the face's top-left seen
+    /// from outside.
+    fn cube(&mut self, side: f32, material: usize) -> usize {
+        let h = side / 2.0;
+        let mut positions = Vec::new();
+        let mut uv = Vec::new();
+        let mut triangles = Vec::new();
+        // Each face: its normal, and its "right" and "up" directions seen
+        // from outside.
+        let faces = [
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+            (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+        ];
+        for (n, r, u) in faces {
+            let k = positions.len() as u32;
+            // Top-left, bottom-left, bottom-right, top-right.
+            for (a, b, t) in [
+                (-1.0, 1.0, [0.0, 0.0]),
+                (-1.0, -1.0, [0.0, 1.0]),
+                (1.0, -1.0, [1.0, 1.0]),
+                (1.0, 1.0, [1.0, 0.0]),
+            ] {
+                positions.push((n + r * a + u * b) * h);
+                uv.push(t);
+            }
+            triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+        }
+        self.mesh(&positions, &uv, None, &triangles, material)
+    }
+
+    /// An RGBA8 image as a PNG in the buffer, and a texture of it with a
+    /// sampler of filter `filter` (glTF's code) that repeats.
+    fn texture(&mut self, width: u32, height: u32, rgba: Vec<u8>, filter: u32) -> usize {
+        let img = image::RgbaImage::from_raw(width, height, rgba).expect("the texel count");
+        let mut png = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut png, image::ImageFormat::Png)
+            .expect("PNG encoding");
+        let view = self.view(png.get_ref());
+        let image = push(
+            &mut self.images,
+            format!(r#"{{"bufferView": {view}, "mimeType": "image/png"}}"#),
+        );
+        let sampler = push(
+            &mut self.samplers,
+            format!(r#"{{"magFilter": {filter}, "minFilter": {filter}}}"#),
+        );
+        push(
+            &mut self.textures,
+            format!(r#"{{"source": {image}, "sampler": {sampler}}}"#),
+        )
+    }
+
+    fn material(&mut self, m: Mat) -> usize {
+        let tex = |key: &str, t: Tex| match t {
+            Some((i, extra)) => format!(r#", "{key}": {{"index": {i}{extra}}}"#),
+            None => String::new(),
+        };
+        let strength = match m.strength {
+            1.0 => String::new(),
+            s => format!(
+                r#", "extensions": {{"KHR_materials_emissive_strength": {{"emissiveStrength": {s:?}}}}}"#
+            ),
+        };
+        let item = format!(
+            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": {:?}, "metallicFactor": {:?}, "roughnessFactor": {:?}{}{}}}, "emissiveFactor": {:?}{strength}}}"#,
+            m.base,
+            m.metallic,
+            m.roughness,
+            tex("baseColorTexture", m.base_texture),
+            tex("metallicRoughnessTexture", m.mr_texture),
+            m.emissive,
+        );
+        push(&mut self.materials, item)
+    }
+
+    /// A node placing mesh `mesh` at `translation`, turned by `rotation`.
+    fn node(&mut self, mesh: usize, translation: Vec3, rotation: Quat) -> usize {
+        let item = format!(
+            r#"{{"mesh": {mesh}, "translation": {:?}, "rotation": {:?}}}"#,
+            translation.to_array(),
+            rotation.to_array()
+        );
+        push(&mut self.nodes, item)
+    }
+
+    /// A perspective camera node.
+    fn camera(&mut self, translation: Vec3, rotation: Quat, yfov: f32, aspect: f32) -> usize {
+        let camera = push(
+            &mut self.cameras,
+            format!(
+                r#"{{"type": "perspective", "perspective": {{"yfov": {yfov:?}, "aspectRatio": {aspect:?}, "znear": 0.01}}}}"#
+            ),
+        );
+        let item = format!(
+            r#"{{"camera": {camera}, "translation": {:?}, "rotation": {:?}}}"#,
+            translation.to_array(),
+            rotation.to_array()
+        );
+        push(&mut self.nodes, item)
+    }
+
+    /// The asset as a GLB file.
+    fn glb(mut self) -> Vec<u8> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let list = |v: &[String]| v.join(",\n  ");
+        let nodes: Vec<String> = (0..self.nodes.len()).map(|i| i.to_string()).collect();
+        let uses_strength = self
+            .materials
+            .iter()
+            .any(|m| m.contains("emissive_strength"));
+        let used = match uses_strength {
+            true => r#""extensionsUsed": ["KHR_materials_emissive_strength"],"#,
+            false => "",
+        };
+        let mut json = format!(
+            r#"{{"asset": {{"version": "2.0", "generator": "wavetrace tests/textured.rs"}}, {used}
+ "buffers": [{{"byteLength": {}}}],
+ "bufferViews": [{}],
+ "accessors": [{}],
+ "meshes": [{}],
+ "materials": [{}],
+ "textures": [{}],
+ "images": [{}],
+ "samplers": [{}],
+ "cameras": [{}],
+ "nodes": [{}],
+ "scenes": [{{"nodes": [{}]}}], "scene": 0}}"#,
+            self.bin.len(),
+            list(&self.views),
+            list(&self.accessors),
+            list(&self.meshes),
+            list(&self.materials),
+            list(&self.textures),
+            list(&self.images),
+            list(&self.samplers),
+            list(&self.cameras),
+            list(&self.nodes),
+            nodes.join(", ")
+        );
+        // Empty arrays are not valid glTF: drop them.
+        for key in ["textures", "images", "samplers", "cameras"] {
+            json = json.replace(&format!("\n \"{key}\": [],"), "");
+        }
+        let mut json = json.into_bytes();
+        while !json.len().is_multiple_of(4) {
+            json.push(b' ');
+        }
+        let total = 12 + 8 + json.len() + 8 + self.bin.len();
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json);
+        out.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&self.bin);
+        out
+    }
+}
+
+/// A `w × h` checkerboard of `cells × cells` squares, RGBA: `a` in the
+/// top-left square and every other, `b` in the rest.
+fn checker(w: u32, h: u32, cells: u32, a: [u8; 4], b: [u8; 4]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for j in 0..h {
+        for i in 0..w {
+            let even = (i * cells / w + j * cells / h).is_multiple_of(2);
+            out.extend_from_slice(if even { &a } else { &b });
+        }
+    }
+    out
+}
+
+/// Writes `bytes` to `name` in `dir` and loads it as a scene.
+fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    asset_scene::load(&path, None).unwrap().0
+}
+
+fn render(scene: &Scene, s: &RenderSettings) -> Film {
+    Renderer::new(scene, s).unwrap().render().0
+}
+
+fn settings(scene: &Scene, w: u32, h: u32, spp: u32) -> RenderSettings {
+    let mut s = RenderSettings::for_scene(scene);
+    (s.width, s.height, s.spp, s.threads) = (w, h, spp, 2);
+    s
+}
+
+// ---------------------------------------------------------------------------
+// The shipped asset
+
+/// `scenes/textured.glb`: a checkered floor, a cube in a base colour
+/// texture (bilinear), a gold cube whose metallic-roughness texture
+/// stripes it shiny and rough, a wedge of vertex colours, and an emitting
+/// panel above, seen by the file's camera. Written by this function
+/// alone: CC0, like every file of the repository's scenes.
+fn shipped_asset() -> Vec<u8> {
+    let mut g = Gltf::default();
+    // Textures: a grey checkerboard (nearest); a 16 × 16 pattern of four
+    // coloured quadrants crossed by a white diagonal (linear); stripes of
+    // roughness (G) 0.2 and 0.9, metal (B) 1 (nearest).
+    let floor_tex = g.texture(8, 8, checker(8, 8, 8, [200; 4], [60, 60, 60, 255]), 9728);
+    let mut pattern = Vec::new();
+    for j in 0..16u32 {
+        for i in 0..16u32 {
+            let c = match (i < 8, j < 8) {
+                _ if i == j || i + 1 == j => [240, 240, 240, 255],
+                (true, true) => [200, 40, 40, 255],
+                (false, true) => [40, 160, 60, 255],
+                (true, false) => [40, 80, 200, 255],
+                (false, false) => [230, 180, 30, 255],
+            };
+            pattern.extend_from_slice(&c);
+        }
+    }
+    let cube_tex = g.texture(16, 16, pattern, 9729);
+    let stripes: Vec<u8> = (0..8u32)
+        .flat_map(|j| (0..8u32).map(move |_| j))
+        .flat_map(|j| match j % 2 {
+            0 => [0, 51, 255, 255],
+            _ => [0, 230, 255, 255],
+        })
+        .collect();
+    let stripes = g.texture(8, 8, stripes, 9728);
+    let floor = g.material(Mat {
+        base_texture: Some((floor_tex, "")),
+        roughness: 0.8,
+        ..Mat::default()
+    });
+    let painted = g.material(Mat {
+        base_texture: Some((cube_tex, "")),
+        roughness: 0.5,
+        ..Mat::default()
+    });
+    let gold = g.material(Mat {
+        base: [1.0, 0.78, 0.34, 1.0],
+        metallic: 1.0,
+        mr_texture: Some((stripes, "")),
+        ..Mat::default()
+    });
+    let white = g.material(Mat {
+        roughness: 0.6,
+        ..Mat::default()
+    });
+    let lamp = g.material(Mat {
+        base: [0.0, 0.0, 0.0, 1.0],
+        emissive: [1.0, 1.0, 1.0],
+        strength: 8.0,
+        ..Mat::default()
+    });
+    let s = 2.5;
+    let floor = g.quad(
+        [
+            Vec3::new(-s, 0.0, -s),
+            Vec3::new(-s, 0.0, s),
+            Vec3::new(s, 0.0, s),
+            Vec3::new(s, 0.0, -s),
+        ],
+        [[0.0, 0.0], [0.0, 2.0], [2.0, 2.0], [2.0, 0.0]],
+        floor,
+    );
+    g.node(floor, Vec3::ZERO, Quat::IDENTITY);
+    let cube = g.cube(1.0, painted);
+    g.node(cube, Vec3::new(-0.9, 0.5, 0.0), Quat::from_rotation_y(0.5));
+    let cube = g.cube(0.9, gold);
+    g.node(
+        cube,
+        Vec3::new(0.8, 0.45, -0.3),
+        Quat::from_rotation_y(-0.4),
+    );
+    // A wedge of red, green and blue corners, in front.
+    let wedge = g.mesh(
+        &[
+            Vec3::new(-0.5, 0.0, 0.0),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.0, 0.8, 0.0),
+        ],
+        &[[0.0; 2]; 3],
+        Some(&[
+            [1.0, 0.1, 0.1, 1.0],
+            [0.1, 1.0, 0.1, 1.0],
+            [0.1, 0.1, 1.0, 1.0],
+        ]),
+        &[[0, 1, 2]],
+        white,
+    );
+    g.node(wedge, Vec3::new(0.2, 0.0, 1.0), Quat::from_rotation_y(-0.2));
+    let l = 0.9;
+    let panel = g.quad(
+        [
+            Vec3::new(-l, 0.0, -l),
+            Vec3::new(l, 0.0, -l),
+            Vec3::new(l, 0.0, l),
+            Vec3::new(-l, 0.0, l),
+        ],
+        [[0.0; 2]; 4],
+        lamp,
+    );
+    g.node(panel, Vec3::new(0.0, 3.2, 0.3), Quat::IDENTITY);
+    let eye = Vec3::new(0.0, 1.7, 4.4);
+    let pitch = -((1.7f32 - 0.4) / 4.4).atan();
+    g.camera(eye, Quat::from_rotation_x(pitch), 0.75, 4.0 / 3.0);
+    g.glb()
+}
+
+#[test]
+fn the_shipped_asset_is_what_this_test_writes() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb");
+    let want = shipped_asset();
+    if std::env::var_os("WAVETRACE_WRITE_ASSET").is_some() {
+        std::fs::write(&path, &want).unwrap();
+    }
+    let have = std::fs::read(&path).unwrap();
+    assert!(
+        have == want,
+        "scenes/textured.glb differs from what tests/textured.rs writes \
+         (WAVETRACE_WRITE_ASSET=1 cargo test --release --test textured rewrites it)"
+    );
+    let (scene, warnings) = asset_scene::load(&path, None).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(scene.texturing.textures.len(), 3);
+    assert_eq!(scene.texturing.uv.len(), scene.triangles.len());
+    assert_eq!(scene.texturing.colours.len(), scene.triangles.len());
+}
+
+// ---------------------------------------------------------------------------
+// Where a texture lands
+
+/// A 2 × 2 quad in y = 0 seen straight from above, with a 4 × 4
+/// checkerboard texture (nearest) and texture coordinates
+/// `(u, v) = ((x + 1)/2, (z + 1)/2)`; the camera's right is +x and its up
+/// −z, so the image's top-left is the texture's (0, 0). Lit by the
+/// default light above.
+fn checker_quad() -> Vec<u8> {
+    let mut g = Gltf::default();
+    let tex = g.texture(4, 4, checker(4, 4, 4, [255; 4], [0, 0, 0, 255]), 9728);
+    let m = g.material(Mat {
+        base_texture: Some((tex, "")),
+        ..Mat::default()
+    });
+    let quad = g.quad(
+        [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+        ],
+        [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+        m,
+    );
+    g.node(quad, Vec3::ZERO, Quat::IDENTITY);
+    let down = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    g.camera(Vec3::new(0.0, 2.0, 0.0), down, 60f32.to_radians(), 1.0);
+    g.glb()
+}
+
+#[test]
+fn a_checkerboard_lands_where_its_texture_coordinates_put_it() {
+    let dir = TempDir::new("checker");
+    let scene = scene_of(&dir, "checker.glb", &checker_quad());
+    let n = 64;
+    let film = render(&scene, &settings(&scene, n, n, 16));
+    let rgb = film.to_rgb();
+    // The centre of cell (i, j) is at x = -1 + (i + ½)/2, z = -1 + (j + ½)/2,
+    // 2 below the camera: pixel n/2 + f·x/2 (right), n/2 + f·z/2 (down).
+    let f = n as f32 / 2.0 / 30f32.to_radians().tan();
+    let mut white = Vec::new();
+    let mut black = Vec::new();
+    for j in 0..4 {
+        for i in 0..4 {
+            let x = -1.0 + (i as f32 + 0.5) / 2.0;
+            let z = -1.0 + (j as f32 + 0.5) / 2.0;
+            let (px, py) = (n as f32 / 2.0 + f * x / 2.0, n as f32 / 2.0 + f * z / 2.0);
+            let mut sum = 0.0;
+            for dy in -2..=2 {
+                for dx in -2..=2 {
+                    let (x, y) = (px as i32 + dx, py as i32 + dy);
+                    let p = rgb[(y as u32 * n + x as u32) as usize];
+                    sum += p[0] + p[1] + p[2];
+                }
+            }
+            if (i + j) % 2 == 0 {
+                white.push(((i, j), sum / 75.0));
+            } else {
+                black.push(((i, j), sum / 75.0));
+            }
+        }
+    }
+    let least_white = white.iter().map(|c| c.1).fold(f32::INFINITY, f32::min);
+    let most_black = black.iter().map(|c| c.1).fold(0.0, f32::max);
+    assert!(
+        least_white > 0.05 && least_white > 4.0 * most_black,
+        "white cells {white:?}, black cells {black:?}"
+    );
+}
+
+// ---------------------------------------------------------------------------
+// Both engines, and reproducibility
+
+/// The two engines trace the same paths, and differ by the order of
+/// summation only (as tests/wavefront.rs holds them), for every
+/// integrator.
+#[test]
+fn both_engines_trace_the_same_paths_on_textured_assets() {
+    let dir = TempDir::new("engines");
+    for (name, bytes) in [
+        ("textured.glb", shipped_asset()),
+        ("checker.glb", checker_quad()),
+    ] {
+        let scene = scene_of(&dir, name, &bytes);
+        for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
+            let film = |engine| {
+                let mut s = settings(&scene, 40, 30, 4);
+                (s.engine, s.integrator) = (engine, integrator);
+                render(&scene, &s).to_rgb()
+            };
+            let (a, b) = (film(Engine::Reference), film(Engine::Wavefront));
+            let mut sum = 0.0f64;
+            for (i, (pa, pb)) in a.iter().zip(&b).enumerate() {
+                for c in 0..3 {
+                    let (x, y) = (pa[c], pb[c]);
+                    assert!(
+                        (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
+                        "{name} {integrator:?}: pixel {i} channel {c}: reference {x}, wavefront {y}"
+                    );
+                    sum += x as f64;
+                }
+            }
+            assert!(sum > 0.0, "{name}: a black image");
+        }
+    }
+}
+
+#[test]
+fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
+    let dir = TempDir::new("bits");
+    let scene = scene_of(&dir, "textured.glb", &shipped_asset());
+    let base = settings(&scene, 40, 30, 4);
+    let want = render(&scene, &base);
+    assert!(want.sums.iter().any(|s| s != &want.sums[0]));
+    let mut variants = Vec::new();
+    for threads in [1, 2] {
+        for batch in [7, 64, 4096] {
+            for simd in wavetrace::accel::simd::SimdWidth::available() {
+                variants.push((threads, batch, simd));
+            }
+        }
+    }
+    for (threads, batch, simd) in variants {
+        let mut s = base.clone();
+        (s.threads, s.batch_size, s.simd) = (threads, batch, simd);
+        let got = render(&scene, &s);
+        assert!(
+            got.sums == want.sums,
+            "{threads} threads, batches of {batch}, {simd:?}"
+        );
+    }
+}
+
+#[test]
+fn a_textured_image_is_the_same_in_passes_and_shards() {
+    let dir = TempDir::new("shards");
+    std::fs::write(dir.join("t.glb"), shipped_asset()).unwrap();
+    let small = [
+        "--width",
+        "24",
+        "--height",
+        "18",
+        "--spp",
+        "4",
+        "--threads",
+        "2",
+    ];
+    let run = |args: &[&str]| {
+        let mut all: Vec<&str> = vec!["render", "t.glb"];
+        all.extend_from_slice(&small);
+        all.extend_from_slice(args);
+        common::run_ok(&dir, &all);
+    };
+    run(&["-o", "whole.exr"]);
+    run(&["--samples", "0..1", "--partial", "a.wtacc"]);
+    run(&["--samples", "1..4", "--partial", "b.wtacc"]);
+    common::run_ok(&dir, &["merge", "a.wtacc", "b.wtacc", "-o", "passes.exr"]);
+    run(&["--shard", "0/2", "--partial", "s0.wtacc"]);
+    run(&["--shard", "1/2", "--partial", "s1.wtacc"]);
+    common::run_ok(&dir, &["merge", "s0.wtacc", "s1.wtacc", "-o", "shards.exr"]);
+    let whole = std::fs::read(dir.join("whole.exr")).unwrap();
+    for other in ["passes.exr", "shards.exr"] {
+        assert!(
+            std::fs::read(dir.join(other)).unwrap() == whole,
+            "{other} differs from the whole render"
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------
+// glTF and TOML
+
+#[test]
+fn a_gltf_renders_as_the_same_scene_written_in_toml() {
+    // A floor, a tilted metal panel and a lamp, in both forms.
+    let floor = [
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(-2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, -2.0),
+    ];
+    let panel = [
+        Vec3::new(-0.5, 0.0, -0.5),
+        Vec3::new(0.5, 0.0, -0.5),
+        Vec3::new(0.5, 1.0, -1.0),
+        Vec3::new(-0.5, 1.0, -1.0),
+    ];
+    let lamp = [
+        Vec3::new(-0.5, 2.0, -0.5),
+        Vec3::new(0.5, 2.0, -0.5),
+        Vec3::new(0.5, 2.0, 0.5),
+        Vec3::new(-0.5, 2.0, 0.5),
+    ];
+    // Materials in the order TOML gives them (by name).
+    let mats = [
+        ("a_floor", [0.8, 0.3, 0.2], 0.0, 0.5, 0.0),
+        ("b_panel", [0.9, 0.9, 0.5], 1.0, 0.3, 0.0),
+        ("c_lamp", [0.0, 0.0, 0.0], 0.0, 1.0, 4.0),
+    ];
+    let mut g = Gltf::default();
+    for (_, base, metallic, roughness, emit) in mats {
+        g.material(Mat {
+            base: [base[0], base[1], base[2], 1.0],
+            metallic,
+            roughness,
+            emissive: if emit > 0.0 { [1.0; 3] } else { [0.0; 3] },
+            strength: if emit > 0.0 { emit } else { 1.0 },
+            ..Mat::default()
+        });
+    }
+    for (k, quad) in [floor, panel, lamp].iter().enumerate() {
+        let mesh = g.quad(*quad, [[0.0; 2]; 4], k);
+        g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    }
+    g.camera(Vec3::new(0.0, 1.0, 4.0), Quat::IDENTITY, 0.8, 1.0);
+    let dir = TempDir::new("toml");
+    let from_gltf = scene_of(&dir, "s.glb", &g.glb());
+
+    let v = |p: Vec3| format!("[{:?}, {:?}, {:?}]", p.x, p.y, p.z);
+    let mut toml = format!(
+        "[camera]\nposition = [0.0, 1.0, 4.0]\nforward = [0.0, 0.0, -1.0]\nup = [0.0, 1.0, 0.0]\n\
+         focal_length_px = {:?}\nwidth = 480\nheight = 480\n\n[integrator]\nmax_depth = {}\n\n",
+        from_gltf.camera.focal_length_px,
+        asset_scene::ASSET_MAX_DEPTH
+    );
+    for (name, base, metallic, roughness, emit) in mats {
+        toml += &format!(
+            "[materials.{name}]\nmodel = \"metallic-roughness\"\nreflectance = {base:?}\n\
+             metallic = {metallic:?}\nroughness = {roughness:?}\nemission = [{emit:?}, {emit:?}, {emit:?}]\n\n"
+        );
+    }
+    for ((name, ..), quad) in mats.iter().zip([floor, panel, lamp]) {
+        for t in [[0, 1, 2], [0, 2, 3]] {
+            toml += &format!(
+                "[[triangle]]\nmaterial = \"{name}\"\nvertices = [{}, {}, {}]\n\n",
+                v(quad[t[0]]),
+                v(quad[t[1]]),
+                v(quad[t[2]])
+            );
+        }
+    }
+    let path = dir.join("s.toml");
+    std::fs::write(&path, &toml).unwrap();
+    let from_toml = Scene::load(&path).unwrap();
+    assert_eq!(from_gltf.triangles, from_toml.triangles);
+    assert_eq!(from_gltf.camera, from_toml.camera);
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        let films = [&from_gltf, &from_toml].map(|scene| {
+            let mut s = settings(scene, 32, 32, 8);
+            s.engine = engine;
+            render(scene, &s)
+        });
+        assert!(films[0].sums.iter().any(|s| s[0] > 0));
+        assert!(
+            films[0].sums == films[1].sums,
+            "{engine:?}: the images differ"
+        );
+    }
+}
+
+/// The camera Camera::new makes is what the file's camera gives (so the
+/// checkerboard's projection above is the one rendered).
+#[test]
+fn the_checker_scene_has_the_camera_its_file_gives() {
+    let dir = TempDir::new("camera");
+    let scene = scene_of(&dir, "checker.glb", &checker_quad());
+    let want = Camera::new(
+        Vec3::new(0.0, 2.0, 0.0),
+        Vec3::NEG_Y,
+        Vec3::NEG_Z,
+        Camera::focal_from_vfov(60.0, 480),
+        480,
+        480,
+    )
+    .unwrap();
+    let c = &scene.camera;
+    assert!((c.position - want.position).length() < 1e-5);
+    assert!((c.forward - want.forward).length() < 1e-5);
+    assert!((c.up - want.up).length() < 1e-5);
+    assert!((c.focal_length_px - want.focal_length_px).abs() < 1e-2);
+    assert_eq!((c.width, c.height), (480, 480));
+}
