@@ -636,10 +636,15 @@ fn an_asset_becomes_a_scene_both_engines_render_alike() {
                0 0 0\n1 0 0\n1 0 -1\n0 0 -1\n4 0 1 2 3\n";
     let asset = ply::read(std::io::Cursor::new(ply.as_bytes().to_vec()), "quad.ply").unwrap();
     let scene = asset_scene::scene_from_asset(&asset, "quad", "quad.ply", None).unwrap();
-    // Two triangles, and the default light's two (nothing emits).
-    assert_eq!(scene.triangles.len(), 4);
-    assert!(scene.triangles[..2].iter().all(|t| t.normal.y > 0.99));
-    assert!(scene.triangles[2..].iter().all(|t| t.normal.y < -0.99));
+    // Two triangles, under the default sky (nothing emits).
+    assert_eq!(scene.triangles.len(), 2);
+    assert!(scene.triangles.iter().all(|t| t.normal.y > 0.99));
+    let sky = scene.environment.as_ref().expect("the default sky");
+    assert_eq!(sky.source, wavetrace::scene::environment::DEFAULT_SKY);
+    assert_eq!(
+        (sky.texels[0], sky.strength, sky.visible),
+        ([1.0; 3], 1.0, true)
+    );
     // The default camera sees every vertex.
     let cam = &scene.camera;
     for t in &scene.triangles[..2] {
@@ -674,12 +679,11 @@ fn an_asset_becomes_a_scene_both_engines_render_alike() {
         let path = Path::new(ASSIMP_GLTF2).join(rel);
         let (scene, _) = asset_scene::load(&path, None).unwrap();
         if rel.starts_with("BoxTextured") {
-            // TEXCOORD_0 reaches the scene, one entry a triangle (the
-            // default light's have zeros).
+            // TEXCOORD_0 reaches the scene, one entry a triangle.
             let uv = &scene.texturing.uv;
             assert_eq!(uv.len(), scene.triangles.len());
-            assert!(uv[..12].iter().all(|t| t[0] != [[0.0; 2]; 3]), "{uv:?}");
-            assert_eq!(uv[12..], [[[[0.0; 2]; 3]; 2]; 2]);
+            assert_eq!(uv.len(), 12);
+            assert!(uv.iter().all(|t| t[0] != [[0.0; 2]; 3]), "{uv:?}");
         }
         engines_agree(rel, &scene);
     }

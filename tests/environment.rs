@@ -298,20 +298,19 @@ fn a_scene_file_names_its_environment() {
         .unwrap();
     let with = |table: &str| format!("{base}\n[environment]\n{table}\n");
     // A file relative to the scene's directory.
-    let pfm = {
-        let mut b = b"PF\n2 1\n-1.0\n".to_vec();
-        for v in [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0] {
-            b.extend_from_slice(&v.to_le_bytes());
-        }
-        b
-    };
-    std::fs::write(dir.join("sky.pfm"), pfm).unwrap();
+    let texels = [[1.0f32, 2.0, 3.0], [4.0, 5.0, 6.0]];
+    exr::prelude::write_rgb_file(dir.join("sky.exr"), 2, 1, |x, _| {
+        let t = texels[x];
+        (t[0], t[1], t[2])
+    })
+    .unwrap();
     std::fs::write(
         dir.join("a.toml"),
-        with("file = \"sky.pfm\"\nrotation = 90\nstrength = 0.5"),
+        with("file = \"sky.exr\"\nrotation = 90\nstrength = 0.5"),
     )
     .unwrap();
     let scene = Scene::load(&dir.join("a.toml")).unwrap();
+    assert!(scene.sources.contains(&dir.join("sky.exr")));
     let env = scene.environment.unwrap();
     assert_eq!(
         (env.width, env.height, env.strength, env.rotation_deg),
@@ -321,7 +320,7 @@ fn a_scene_file_names_its_environment() {
     // Errors name the file, the line and the field.
     for (table, field) in [
         ("color = [1, 2]", "environment.color"),
-        ("color = [1, 1, 1]\nfile = \"sky.pfm\"", "environment.file"),
+        ("color = [1, 1, 1]\nfile = \"sky.exr\"", "environment.file"),
         ("color = [1, 1, 1]\nstrength = -2", "environment.strength"),
         ("color = [1, 1, 1]\nbrightness = 2", "brightness"),
         ("file = \"none.hdr\"", "environment.file"),

@@ -1,7 +1,7 @@
 //! A scene from an asset file alone (`wavetrace model.glb`, `model.gltf`,
 //! `scan.ply`): the asset's instances flattened into world-space
-//! triangles, its camera (or one that frames it), and a light where it has
-//! none.
+//! triangles, its camera (or one that frames it), and the default
+//! environment where it has no light.
 //!
 //! **Materials.** Each [`PbrMaterial`] becomes a
 //! [`Model::MetallicRoughness`] material (glTF's Appendix B, in both
@@ -18,7 +18,9 @@
 //! of the bounds from the direction [`DEFAULT_VIEW`] (front, right, above;
 //! glTF's +Y is up and +Z faces the viewer), far enough that the bounding
 //! sphere fills a vertical field of view of [`DEFAULT_VFOV_DEG`]. Without
-//! an emitter: a square light above the asset ([`default_light`]).
+//! an emitter: the default environment
+//! ([`environment::default_sky`](super::environment::default_sky), a
+//! uniform white sky of radiance 1), which the render command announces.
 //! Images are [`DEFAULT_HEIGHT`] pixels high, as wide as the camera's
 //! aspect ratio (4:3 where the file fixes none).
 
@@ -27,7 +29,7 @@ use super::builder::{Origin, SceneBuilder, View};
 use super::camera::Camera;
 use super::material::Maps;
 use super::texture::TextureRef;
-use super::{Material, Model, RenderOptions, Scene, SceneError, Triangle};
+use super::{Material, Model, RenderOptions, Scene, SceneError};
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
@@ -124,22 +126,6 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
     out
 }
 
-/// The square light added to a scene without emitters: side the bounds'
-/// diagonal `d`, centred `d` above the top of the bounds, facing down,
-/// radiance 3 (white).
-pub fn default_light(lo: Vec3, hi: Vec3) -> [[Vec3; 3]; 2] {
-    let c = (lo + hi) * 0.5;
-    let d = (hi - lo).length().max(1e-3);
-    let y = hi.y + d;
-    let h = d * 0.5;
-    let p = |x: f32, z: f32| Vec3::new(c.x + x, y, c.z + z);
-    // Counter-clockwise seen from below: the front faces down.
-    [
-        [p(-h, -h), p(h, -h), p(h, h)],
-        [p(-h, -h), p(h, h), p(-h, h)],
-    ]
-}
-
 /// Adds `asset` to the scene `b` builds: its textures, its materials
 /// ([`material`]; named `prefix:name` where `prefix` is not empty),
 /// then the default material, then every instance's triangles in world
@@ -200,14 +186,7 @@ pub fn scene_from_asset(
     let mut b = SceneBuilder::new(name);
     place(&mut b, asset, None, "", &whole)?;
     if !b.has_emitting_triangle() {
-        let light = b.material(Material::diffuse(
-            "default light",
-            Vec3::ZERO,
-            Vec3::splat(3.0),
-        ));
-        for v in default_light(lo, hi) {
-            b.push(Triangle::ccw(v, light), None, None);
-        }
+        b.environment(Some(super::environment::default_sky()));
     }
     let view = choose_camera(asset, camera, lo, hi).map_err(|m| whole.error(m))?;
     b.camera(view, &whole)?;

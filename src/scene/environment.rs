@@ -1,6 +1,6 @@
 //! The environment: radiance arriving from infinitely far away, seen by
-//! every ray that leaves the scene. An equirectangular image (`.exr`,
-//! `.hdr` or `.pfm`) or one constant colour, scaled by a strength and
+//! every ray that leaves the scene. An equirectangular image (`.exr` or
+//! `.hdr`) or one constant colour, scaled by a strength and
 //! turned about the up axis (docs/lights.md).
 //!
 //! The mapping is Blender's and three.js's, in +Y-up coordinates: a
@@ -22,15 +22,15 @@
 //! visible = true          # false: camera rays that miss see alpha 0
 //! ```
 
-use super::SceneError;
 use glam::Vec3;
 use serde::Deserialize;
 use std::path::Path;
 use std::sync::Arc;
 use toml::Spanned;
 
-/// The most texels an environment image may have (a 16384×8192 image).
-pub const MAX_TEXELS: u64 = 1 << 27;
+/// The most texels an environment image may have (an 8192×4096 image:
+/// 400 MB of texels, as much again for sampling).
+pub const MAX_TEXELS: u64 = 1 << 25;
 
 /// An environment light: an equirectangular image and how it is seen.
 #[derive(Clone, Debug, PartialEq)]
@@ -53,6 +53,9 @@ pub struct Environment {
     pub source: String,
     /// The image file it was read from (`None`: a constant colour).
     pub file: Option<std::path::PathBuf>,
+    /// How many of the file's texels had a negative component, read as 0
+    /// (the ringing of lossy EXR compression around a bright sun).
+    pub negative_texels: usize,
 }
 
 /// Where an environment's radiance comes from.
@@ -96,7 +99,7 @@ impl Environment {
                 "the environment's rotation must be a finite number of degrees, not {rotation_deg}"
             ));
         }
-        let (texels, width, height, name, file) = match source {
+        let (mut texels, width, height, name, file) = match source {
             EnvSource::Constant(c) => {
                 if !c.iter().all(|x| x.is_finite() && *x >= 0.0) {
                     return Err(format!(
@@ -116,7 +119,15 @@ impl Environment {
                 (t, w, h, path.display().to_string(), Some(path.clone()))
             }
         };
+        let mut negative_texels = 0;
+        for t in &mut texels {
+            if t.iter().any(|&c| c < 0.0) {
+                negative_texels += 1;
+                *t = t.map(|c| c.max(0.0));
+            }
+        }
         Ok(Self {
+            negative_texels,
             texels: Arc::new(texels),
             width,
             height,
@@ -145,27 +156,66 @@ impl Environment {
     }
 }
 
-/// An equirectangular radiance image: `.exr` or `.pfm` (through
-/// [`crate::output::read_radiance`]) or Radiance `.hdr`; its texels (row 0
-/// at the top), width and height. NaN, infinite or negative texels are
-/// refused.
+/// An equirectangular radiance image, `.exr` or Radiance `.hdr`: its
+/// texels (row 0 at the top), width and height. The size is checked
+/// against [`MAX_TEXELS`] before the pixels are decoded; a NaN or infinite
+/// texel is refused, naming it (negative ones are kept here, and read as 0
+/// by [`Environment::load`]).
 fn read_image(path: &Path) -> Result<(Vec<[f32; 3]>, u32, u32), String> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("exr" | "pfm") => {
-            let image =
-                crate::output::read_radiance(path, "the environment").map_err(|e| e.to_string())?;
-            Ok((image.rgb, image.width, image.height))
+    let (texels, width, height) = match ext.as_deref() {
+        Some("exr") => read_exr(path)?,
+        Some("hdr") => read_hdr(path)?,
+        _ => {
+            return Err(format!(
+                "{}: an environment is an equirectangular .exr or .hdr image, or a colour R,G,B",
+                path.display()
+            ));
         }
-        Some("hdr") => read_hdr(path),
-        _ => Err(format!(
-            "{}: an environment is an equirectangular .exr, .hdr or .pfm image, or a colour R,G,B",
+    };
+    Ok((check_finite(path, texels, width)?, width, height))
+}
+
+/// Refuses an image of `width × height` texels that is empty or larger
+/// than [`MAX_TEXELS`].
+fn check_size(path: &Path, width: u64, height: u64) -> Result<(), String> {
+    let texels = width * height;
+    if texels == 0 || texels > MAX_TEXELS {
+        return Err(format!(
+            "{}: an environment image of {width}×{height} texels (at least 1, at most {MAX_TEXELS})",
             path.display()
-        )),
+        ));
     }
+    Ok(())
+}
+
+/// The `R`, `G`, `B` channels of an OpenEXR image's first RGB layer (any
+/// compression the `exr` crate reads), its header read and its size
+/// checked first.
+fn read_exr(path: &Path) -> Result<(Vec<[f32; 3]>, u32, u32), String> {
+    use exr::prelude::read_first_rgba_layer_from_file;
+    let bad = |e: exr::error::Error| format!("{}: cannot read the EXR image: {e}", path.display());
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(bad)?;
+    let size = meta
+        .headers
+        .first()
+        .map(|h| h.layer_size)
+        .ok_or_else(|| format!("{}: the EXR image has no part", path.display()))?;
+    check_size(path, size.width() as u64, size.height() as u64)?;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .map_err(bad)?;
+    let (w, texels) = image.layer_data.channel_data.pixels;
+    let h = texels.len() / w.max(1);
+    Ok((texels, w as u32, h as u32))
 }
 
 /// A Radiance `.hdr` (RGBE) image, its size checked before it is decoded.
@@ -177,30 +227,26 @@ fn read_hdr(path: &Path) -> Result<(Vec<[f32; 3]>, u32, u32), String> {
     let decoder =
         image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file)).map_err(|e| bad(&e))?;
     let (width, height) = decoder.dimensions();
-    let texels = u64::from(width) * u64::from(height);
-    if texels == 0 || texels > MAX_TEXELS {
-        return Err(format!(
-            "{}: an environment image of {width}×{height} texels (at most {MAX_TEXELS}, at least 1)",
-            path.display()
-        ));
-    }
+    check_size(path, u64::from(width), u64::from(height))?;
     let image = image::DynamicImage::from_decoder(decoder).map_err(|e| bad(&e))?;
     let rgb = image.into_rgb32f();
-    let texels: Vec<[f32; 3]> = rgb.pixels().map(|p| p.0).collect();
-    if let Some(i) = texels
-        .iter()
-        .position(|t| !t.iter().all(|c| c.is_finite() && *c >= 0.0))
-    {
+    let texels = rgb.pixels().map(|p| p.0).collect();
+    Ok((texels, width, height))
+}
+
+/// `texels`, or an error naming the first NaN or infinite one.
+fn check_finite(path: &Path, texels: Vec<[f32; 3]>, width: u32) -> Result<Vec<[f32; 3]>, String> {
+    if let Some(i) = texels.iter().position(|t| !t.iter().all(|c| c.is_finite())) {
         let w = width as usize;
         return Err(format!(
-            "{}: texel ({}, {}) is {:?}; an environment must be finite and non-negative",
+            "{}: texel ({}, {}) is {:?}; an environment must be finite",
             path.display(),
             i % w,
             i / w,
             texels[i]
         ));
     }
-    Ok((texels, width, height))
+    Ok(texels)
 }
 
 /// The `[environment]` table of a scene file.
@@ -214,27 +260,22 @@ pub struct EnvironmentFile {
     visible: Option<bool>,
 }
 
+/// Where a problem with an `[environment]` table is: the span of the
+/// scene file's text, the field (`environment.FIELD`) and the message.
+pub type TableError = (std::ops::Range<usize>, String, String);
+
 /// The environment a scene file's `[environment]` table (`raw`, if any)
 /// asks for; a `file` is relative to the scene file `file`'s directory.
-/// `text` is the scene file's text, for the errors' lines.
-pub(super) fn from_file(
+/// Errors are placed by the front end that read the table.
+pub fn from_file(
     raw: Option<&Spanned<EnvironmentFile>>,
-    text: &str,
     file: &str,
-) -> Result<Option<Environment>, SceneError> {
+) -> Result<Option<Environment>, TableError> {
     let Some(raw) = raw else {
         return Ok(None);
     };
     let at = |span: std::ops::Range<usize>, field: &str, message: String| {
-        let (line, column) = super::file::line_col(text, span.start);
-        SceneError {
-            mesh: None,
-            file: file.to_string(),
-            line,
-            column,
-            field: Some(format!("environment.{field}")),
-            message,
-        }
+        (span, format!("environment.{field}"), message)
     };
     let env = raw.get_ref();
     let source = match (&env.file, &env.color) {
@@ -280,6 +321,19 @@ pub(super) fn from_file(
     Environment::load(&source.0, strength, rotation, visible)
         .map(Some)
         .map_err(|m| at(source.1, source.2, m))
+}
+
+/// What [`default_sky`] is, in its [`Environment::source`].
+pub const DEFAULT_SKY: &str = "the default environment (a uniform white sky of radiance 1)";
+
+/// The environment of an asset rendered alone that brings no light of its
+/// own: a uniform white sky of radiance 1, visible — a white furnace, so a
+/// white diffuse surface open to the whole sky is exactly white.
+pub fn default_sky() -> Environment {
+    Environment {
+        source: DEFAULT_SKY.into(),
+        ..constant(Vec3::ONE)
+    }
 }
 
 /// A constant environment of radiance `c` (strength 1, visible).

@@ -280,11 +280,8 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     }
     let (max_depth, options) = integrator(&t, &raw.integrator)?;
     b.settings(max_depth, options);
-    b.environment(super::environment::from_file(
-        raw.environment.as_ref(),
-        text,
-        file,
-    )?);
+    let env = super::environment::from_file(raw.environment.as_ref(), file);
+    b.environment(env.map_err(|(span, field, m)| t.err(span, &field, m))?);
     b.finish(&whole)
 }
 
@@ -988,7 +985,7 @@ fn transform(
 }
 
 /// 1-based line and column of byte `offset` in `text`.
-pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
