@@ -493,7 +493,7 @@ fn the_shipped_asset_is_what_this_test_writes() {
 /// checkerboard texture (nearest) and texture coordinates
 /// `(u, v) = ((x + 1)/2, (z + 1)/2)`; the camera's right is +x and its up
 /// −z, so the image's top-left is the texture's (0, 0). Lit by the
-/// default light above.
+/// default sky.
 fn checker_quad() -> Vec<u8> {
     let mut g = Gltf::default();
     let tex = g.texture(4, 4, checker(4, 4, 4, [255; 4], [0, 0, 0, 255]), 9728);

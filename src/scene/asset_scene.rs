@@ -171,7 +171,7 @@ pub fn place(
 /// The scene of `asset`: the asset as [`place`] adds it (a transform that
 /// mirrors keeps each triangle's front where the file has it, vertex
 /// normals go by the inverse transpose), the camera named or numbered
-/// `camera` (else the first, else the default one) and the default light
+/// `camera` (else the first, else the default one) and the default sky
 /// where nothing emits. `file` names the asset in errors.
 pub fn scene_from_asset(
     asset: &Asset,
