@@ -125,6 +125,29 @@ fn a_white_furnace_is_the_environments_radiance_in_every_pixel() {
     }
 }
 
+#[test]
+fn an_invisible_environment_lights_the_scene_but_not_the_background() {
+    // `visible = false`: camera rays that miss see black (the corners),
+    // while the sphere is still lit by the environment (the centre).
+    let scene = scene(false, "color = [0.5, 0.5, 0.5]\nvisible = false");
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
+            let film = render(&scene, |s| {
+                (s.engine, s.integrator, s.spp) = (engine, integrator, 16);
+            });
+            let rgb = film.to_rgb();
+            let at = |x: usize, y: usize| rgb[y * 16 + x];
+            assert_eq!(at(0, 0), [0.0; 3], "{engine:?} {integrator:?}");
+            assert_eq!(at(15, 15), [0.0; 3], "{engine:?} {integrator:?}");
+            let centre = at(8, 9)[0];
+            assert!(
+                (centre - 0.5).abs() < 0.1,
+                "{engine:?} {integrator:?}: {centre}"
+            );
+        }
+    }
+}
+
 /// Per pixel and channel: the engines trace the same paths and sum their
 /// terms in another order.
 fn assert_close(what: &str, a: &Film, b: &Film) {
