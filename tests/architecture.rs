@@ -365,3 +365,45 @@ fn no_modules_use_each_other() {
     }
     assert!(s.cycles.is_empty(), "module cycles: {:?}", s.cycles);
 }
+
+/// The lines of every function in `code` (from `fn` to its closing brace),
+/// with its name.
+fn function_lengths(code: &str) -> Vec<(String, usize)> {
+    let bytes = code.as_bytes();
+    let ident = |b: u8| b.is_ascii_alphanumeric() || b == b'_';
+    let mut out = Vec::new();
+    let mut i = 0;
+    while let Some(k) = code[i..].find("fn ") {
+        let start = i + k;
+        i = start + 3;
+        if start > 0 && ident(bytes[start - 1]) {
+            continue;
+        }
+        let name: String = code[i..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let end = item_end(code, start);
+        out.push((name, code[start..end].matches('\n').count() + 1));
+    }
+    out
+}
+
+#[test]
+fn no_function_in_the_scene_layer_is_over_100_lines() {
+    // The scene layer is built through one builder with one front end per
+    // format: its functions stay short enough to read (issue 24).
+    let code = "fn a() {\n}\nfn b() -> u8 {\n    let s = \"}\";\n    1\n}\n";
+    assert_eq!(function_lengths(code), [("a".into(), 2), ("b".into(), 4)]);
+    let mut long = Vec::new();
+    for (module, code) in modules() {
+        if module == "scene" || module.starts_with("scene::") {
+            for (name, lines) in function_lengths(&code) {
+                if lines > 100 {
+                    long.push(format!("{module}::{name}: {lines} lines"));
+                }
+            }
+        }
+    }
+    assert!(long.is_empty(), "functions over 100 lines: {long:?}");
+}

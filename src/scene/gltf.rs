@@ -602,11 +602,10 @@ impl Reader<'_> {
         Ok(())
     }
 
-    fn read_scene(&mut self) -> Result<(), AssetError> {
-        let doc = self.doc;
-        // Each node has at most one parent: the nodes form trees.
-        let mut parent = vec![None; doc.nodes().len()];
-        for n in doc.nodes() {
+    /// Each node's parent, refusing a node with two: the nodes form trees.
+    fn parents(&self) -> Result<Vec<Option<usize>>, AssetError> {
+        let mut parent = vec![None; self.doc.nodes().len()];
+        for n in self.doc.nodes() {
             for c in n.children() {
                 if let Some(p) = parent[c.index()] {
                     return Err(self.err(
@@ -620,6 +619,41 @@ impl Reader<'_> {
                 parent[c.index()] = Some(n.index());
             }
         }
+        Ok(parent)
+    }
+
+    /// A node's camera, placed by `world`: perspective read,
+    /// orthographic skipped with a warning.
+    fn read_camera(&mut self, cam: &gltf::Camera, world: Mat4) -> Result<(), AssetError> {
+        match cam.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                if !(p.yfov() > 0.0 && p.yfov() < std::f32::consts::PI) {
+                    return Err(self.err(
+                        format!("cameras[{}].perspective.yfov", cam.index()),
+                        "a field of view outside (0, π)",
+                    ));
+                }
+                self.asset.cameras.push(AssetCamera {
+                    name: cam
+                        .name()
+                        .map_or_else(|| format!("camera {}", cam.index()), str::to_string),
+                    transform: world,
+                    yfov: p.yfov(),
+                    aspect_ratio: p.aspect_ratio().filter(|a| *a > 0.0 && a.is_finite()),
+                });
+            }
+            gltf::camera::Projection::Orthographic(_) => self.asset.warnings.push(format!(
+                "{}: cameras[{}]: orthographic cameras are not supported; skipped",
+                self.file,
+                cam.index()
+            )),
+        }
+        Ok(())
+    }
+
+    fn read_scene(&mut self) -> Result<(), AssetError> {
+        let doc = self.doc;
+        let parent = self.parents()?;
         let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
             Some(s) => s.nodes().collect(),
             None => doc
@@ -686,29 +720,7 @@ impl Reader<'_> {
                 }
             }
             if let Some(cam) = node.camera() {
-                match cam.projection() {
-                    gltf::camera::Projection::Perspective(p) => {
-                        if !(p.yfov() > 0.0 && p.yfov() < std::f32::consts::PI) {
-                            return Err(self.err(
-                                format!("cameras[{}].perspective.yfov", cam.index()),
-                                "a field of view outside (0, π)",
-                            ));
-                        }
-                        self.asset.cameras.push(AssetCamera {
-                            name: cam
-                                .name()
-                                .map_or_else(|| format!("camera {}", cam.index()), str::to_string),
-                            transform: world,
-                            yfov: p.yfov(),
-                            aspect_ratio: p.aspect_ratio().filter(|a| *a > 0.0 && a.is_finite()),
-                        });
-                    }
-                    gltf::camera::Projection::Orthographic(_) => self.asset.warnings.push(format!(
-                        "{}: cameras[{}]: orthographic cameras are not supported; skipped",
-                        self.file,
-                        cam.index()
-                    )),
-                }
+                self.read_camera(&cam, world)?;
             }
             for c in node.children().collect::<Vec<_>>().into_iter().rev() {
                 stack.push((c, world));

@@ -121,65 +121,9 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         sources: sources.into_inner(),
         ..Default::default()
     };
-    // The precheck's faces of three corners or more, in file order: tobj
-    // keeps those, in the same order (its vertex normals are not used:
-    // it makes some up for faces that have none).
     let mut file_faces = faces.iter();
     for model in &models {
-        let m = &model.mesh;
-        let pos = |i: u32| -> Option<Vec3> {
-            let i = i as usize * 3;
-            Some(Vec3::new(
-                *m.positions.get(i)?,
-                *m.positions.get(i + 1)?,
-                *m.positions.get(i + 2)?,
-            ))
-        };
-        let bad = || {
-            err(
-                0,
-                format!("object {:?}: a face index is out of range", model.name),
-            )
-        };
-        let arities: Vec<u32> = if m.face_arities.is_empty() {
-            vec![3; m.indices.len() / 3]
-        } else {
-            m.face_arities.clone()
-        };
-        let mat = m.material_id.filter(|&i| i < mesh.materials.len());
-        let mut at = 0usize;
-        for n in arities {
-            let n = n as usize;
-            let face = m.indices.get(at..at.saturating_add(n)).ok_or_else(bad)?;
-            at += n;
-            if n < 3 {
-                continue; // no area (the precheck refuses a face of no vertices)
-            }
-            let normals = match file_faces.next() {
-                Some(f) if f.len() == n || f.is_empty() => f,
-                _ => {
-                    return Err(err(
-                        0,
-                        "the faces do not match the file's face lines".into(),
-                    ));
-                }
-            };
-            // Fan from the first vertex: (0, k, k+1).
-            let p0 = pos(face[0]).ok_or_else(bad)?;
-            for k in 1..n.saturating_sub(1) {
-                let p1 = pos(face[k]).ok_or_else(bad)?;
-                let p2 = pos(face[k + 1]).ok_or_else(bad)?;
-                mesh.triangles.push([p0, p1, p2]);
-                let flat = (p1 - p0).cross(p2 - p0).normalize_or_zero();
-                let corner = |i: usize| match normals[i] {
-                    Vec3::ZERO => flat,
-                    n => n,
-                };
-                mesh.normals
-                    .push((!normals.is_empty()).then(|| [corner(0), corner(k), corner(k + 1)]));
-                mesh.material.push(mat);
-            }
-        }
+        add_faces(&mut mesh, model, &mut file_faces, path)?;
     }
     if mesh.triangles.is_empty() {
         return Err(err(
@@ -190,6 +134,79 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         ));
     }
     Ok(mesh)
+}
+
+/// Adds the faces of `model`, fan-triangulated, to `mesh`, with their
+/// vertex normals from `file_faces` (the precheck's faces of three
+/// corners or more, in file order: tobj keeps those, in the same order; its
+/// own vertex normals are not used: it makes some up for faces that have
+/// none).
+fn add_faces(
+    mesh: &mut ObjMesh,
+    model: &tobj::Model,
+    file_faces: &mut std::slice::Iter<Vec<Vec3>>,
+    path: &Path,
+) -> Result<(), ObjError> {
+    let err = |line: usize, message: String| ObjError {
+        file: path.to_path_buf(),
+        line,
+        message,
+    };
+    let m = &model.mesh;
+    let pos = |i: u32| -> Option<Vec3> {
+        let i = i as usize * 3;
+        Some(Vec3::new(
+            *m.positions.get(i)?,
+            *m.positions.get(i + 1)?,
+            *m.positions.get(i + 2)?,
+        ))
+    };
+    let bad = || {
+        err(
+            0,
+            format!("object {:?}: a face index is out of range", model.name),
+        )
+    };
+    let arities: Vec<u32> = if m.face_arities.is_empty() {
+        vec![3; m.indices.len() / 3]
+    } else {
+        m.face_arities.clone()
+    };
+    let mat = m.material_id.filter(|&i| i < mesh.materials.len());
+    let mut at = 0usize;
+    for n in arities {
+        let n = n as usize;
+        let face = m.indices.get(at..at.saturating_add(n)).ok_or_else(bad)?;
+        at += n;
+        if n < 3 {
+            continue; // no area (the precheck refuses a face of no vertices)
+        }
+        let normals = match file_faces.next() {
+            Some(f) if f.len() == n || f.is_empty() => f,
+            _ => {
+                return Err(err(
+                    0,
+                    "the faces do not match the file's face lines".into(),
+                ));
+            }
+        };
+        // Fan from the first vertex: (0, k, k+1).
+        let p0 = pos(face[0]).ok_or_else(bad)?;
+        for k in 1..n.saturating_sub(1) {
+            let p1 = pos(face[k]).ok_or_else(bad)?;
+            let p2 = pos(face[k + 1]).ok_or_else(bad)?;
+            mesh.triangles.push([p0, p1, p2]);
+            let flat = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+            let corner = |i: usize| match normals[i] {
+                Vec3::ZERO => flat,
+                n => n,
+            };
+            mesh.normals
+                .push((!normals.is_empty()).then(|| [corner(0), corner(k), corner(k + 1)]));
+            mesh.material.push(mat);
+        }
+    }
+    Ok(())
 }
 
 /// Reads the OBJ at `path` with its MTL materials as an [`Asset`](super::asset::Asset) (the
@@ -339,77 +356,91 @@ fn precheck_obj(bytes: &[u8]) -> Result<Vec<Vec<Vec3>>, (usize, String)> {
                 vn += 1;
             }
             Some("f") => {
-                let mut corners = 0usize;
-                let mut face_normals = Vec::new();
-                for corner in words {
-                    corners += 1;
-                    let parts = corner.split('/').collect::<Vec<_>>();
-                    let has_normal = parts.get(2).is_some_and(|p| !p.is_empty());
-                    if corners > 1 && has_normal == face_normals.is_empty() {
-                        return Err((
-                            line_no,
-                            "a face gives vertex normals (v//vn, v/vt/vn) to some corners and \
-                             not others"
-                                .into(),
-                        ));
-                    }
-                    for (k, part) in corner.split('/').enumerate() {
-                        let (what, count) = match k {
-                            0 => ("vertex", v),
-                            1 => ("texture coordinate", vt),
-                            2 => ("normal", vn),
-                            _ => return Err((line_no, format!("bad face corner {corner:?}"))),
-                        };
-                        if part.is_empty() && k > 0 {
-                            continue;
-                        }
-                        let x: i64 = part.parse().map_err(|_| {
-                            (
-                                line_no,
-                                format!("face corner {corner:?}: {part:?} is not an index"),
-                            )
-                        })?;
-                        if k == 1 && count == 0 {
-                            continue; // tobj ignores these when there are none
-                        }
-                        let ok = if x > 0 {
-                            x as u64 <= count as u64
-                        } else {
-                            x < 0 && x.unsigned_abs() <= count as u64
-                        };
-                        if !ok {
-                            return Err((
-                                line_no,
-                                if x == 0 {
-                                    format!("face {what} index 0 (OBJ indices start at 1)")
-                                } else {
-                                    format!(
-                                        "face {what} index {x} is past the {count} {what}(s) defined above it"
-                                    )
-                                },
-                            ));
-                        }
-                        if k == 2 {
-                            let i = if x > 0 {
-                                x as usize - 1
-                            } else {
-                                vn - x.unsigned_abs() as usize
-                            };
-                            face_normals.push(normals[i]);
-                        }
-                    }
-                }
-                if corners == 0 {
-                    return Err((line_no, "a face (`f`) with no vertices".into()));
-                }
-                if corners >= 3 {
-                    faces.push(face_normals);
+                if let Some(face) = precheck_face(words, line_no, (v, vt, vn), &normals)? {
+                    faces.push(face);
                 }
             }
             _ => {}
         }
     }
     Ok(faces)
+}
+
+/// Checks an `f` line's corners (`words`, on line `line_no`) against the
+/// `counts` of vertices, texture coordinates and normals defined above it
+/// (`normals` the normals); returns the corners' normals (empty when the
+/// face gives none) for a face of three corners or more, `None` for one
+/// of fewer.
+fn precheck_face(
+    words: std::str::SplitWhitespace,
+    line_no: usize,
+    (v, vt, vn): (usize, usize, usize),
+    normals: &[Vec3],
+) -> Result<Option<Vec<Vec3>>, (usize, String)> {
+    let mut corners = 0usize;
+    let mut face_normals = Vec::new();
+    for corner in words {
+        corners += 1;
+        let parts = corner.split('/').collect::<Vec<_>>();
+        let has_normal = parts.get(2).is_some_and(|p| !p.is_empty());
+        if corners > 1 && has_normal == face_normals.is_empty() {
+            return Err((
+                line_no,
+                "a face gives vertex normals (v//vn, v/vt/vn) to some corners and \
+                 not others"
+                    .into(),
+            ));
+        }
+        for (k, part) in corner.split('/').enumerate() {
+            let (what, count) = match k {
+                0 => ("vertex", v),
+                1 => ("texture coordinate", vt),
+                2 => ("normal", vn),
+                _ => return Err((line_no, format!("bad face corner {corner:?}"))),
+            };
+            if part.is_empty() && k > 0 {
+                continue;
+            }
+            let x: i64 = part.parse().map_err(|_| {
+                (
+                    line_no,
+                    format!("face corner {corner:?}: {part:?} is not an index"),
+                )
+            })?;
+            if k == 1 && count == 0 {
+                continue; // tobj ignores these when there are none
+            }
+            let ok = if x > 0 {
+                x as u64 <= count as u64
+            } else {
+                x < 0 && x.unsigned_abs() <= count as u64
+            };
+            if !ok {
+                return Err((
+                    line_no,
+                    if x == 0 {
+                        format!("face {what} index 0 (OBJ indices start at 1)")
+                    } else {
+                        format!(
+                            "face {what} index {x} is past the {count} {what}(s) defined above it"
+                        )
+                    },
+                ));
+            }
+            if k == 2 {
+                let i = if x > 0 {
+                    x as usize - 1
+                } else {
+                    vn - x.unsigned_abs() as usize
+                };
+                face_normals.push(normals[i]);
+            }
+        }
+    }
+    if corners == 0 {
+        return Err((line_no, "a face (`f`) with no vertices".into()));
+    }
+    Ok((corners >= 3).then_some(face_normals))
 }
 
 /// Load an MTL file after checking the colours wavetrace reads.

@@ -132,39 +132,10 @@ pub fn load(path: &Path) -> Result<Asset, AssetError> {
     read(std::io::BufReader::new(f), &file)
 }
 
-/// Reads a PLY file from `source`; `file` names it in errors.
-pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
+/// The mesh of `vertices` (no triangles yet): positions (finite), and
+/// normals, texture coordinates and colours where every vertex has them.
+fn vertex_attributes(vertices: &[Vertex], file: &str) -> Result<AssetMesh, AssetError> {
     let err = |at: String, m: String| AssetError::new(file, at, m);
-    let ply_err = |e: ply_rs_bw::parser::ParseError| {
-        let at = e.line().map_or_else(String::new, |l| format!("line {l}"));
-        AssetError::new(file, at, format!("not a readable PLY file: {e}"))
-    };
-    let mut reader = Reader::new(source);
-    let vertex_parser = Parser::<Vertex>::new();
-    let face_parser = Parser::<Face>::new();
-    let other_parser = Parser::<DefaultElement>::new();
-    let header = vertex_parser.read_header(&mut reader).map_err(ply_err)?;
-    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
-    for element in header.elements.values() {
-        match element.name.as_str() {
-            "vertex" => {
-                vertices = vertex_parser
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(ply_err)?
-            }
-            "face" => {
-                faces = face_parser
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(ply_err)?
-            }
-            _ => {
-                other_parser
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(ply_err)?;
-            }
-        }
-    }
-    let n = vertices.len();
     let all = |bit: u8| !vertices.is_empty() && vertices.iter().all(|v: &Vertex| v.has & bit != 0);
     let mut mesh = AssetMesh {
         name: file.to_string(),
@@ -208,6 +179,43 @@ pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
             })
             .collect();
     }
+    Ok(mesh)
+}
+
+/// Reads a PLY file from `source`; `file` names it in errors.
+pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
+    let err = |at: String, m: String| AssetError::new(file, at, m);
+    let ply_err = |e: ply_rs_bw::parser::ParseError| {
+        let at = e.line().map_or_else(String::new, |l| format!("line {l}"));
+        AssetError::new(file, at, format!("not a readable PLY file: {e}"))
+    };
+    let mut reader = Reader::new(source);
+    let vertex_parser = Parser::<Vertex>::new();
+    let face_parser = Parser::<Face>::new();
+    let other_parser = Parser::<DefaultElement>::new();
+    let header = vertex_parser.read_header(&mut reader).map_err(ply_err)?;
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    for element in header.elements.values() {
+        match element.name.as_str() {
+            "vertex" => {
+                vertices = vertex_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?
+            }
+            "face" => {
+                faces = face_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?
+            }
+            _ => {
+                other_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(ply_err)?;
+            }
+        }
+    }
+    let n = vertices.len();
+    let mut mesh = vertex_attributes(&vertices, file)?;
     for (k, f) in faces.iter().enumerate() {
         if let Some(&i) = f.indices.iter().find(|&&i| i < 0 || i as usize >= n) {
             return Err(err(
