@@ -47,6 +47,8 @@ struct Mat {
     mr_texture: Tex,
     emissive: [f32; 3],
     strength: f32,
+    /// Extra JSON of the material (e.g. its `alphaMode`).
+    extra: &'static str,
 }
 
 impl Default for Mat {
@@ -59,6 +61,7 @@ impl Default for Mat {
             mr_texture: None,
             emissive: [0.0; 3],
             strength: 1.0,
+            extra: "",
         }
     }
 }
@@ -219,13 +222,14 @@ impl Gltf {
             ),
         };
         let item = format!(
-            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": {:?}, "metallicFactor": {:?}, "roughnessFactor": {:?}{}{}}}, "emissiveFactor": {:?}{strength}}}"#,
+            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": {:?}, "metallicFactor": {:?}, "roughnessFactor": {:?}{}{}}}, "emissiveFactor": {:?}{strength}{}}}"#,
             m.base,
             m.metallic,
             m.roughness,
             tex("baseColorTexture", m.base_texture),
             tex("metallicRoughnessTexture", m.mr_texture),
             m.emissive,
+            m.extra,
         );
         push(&mut self.materials, item)
     }
@@ -558,6 +562,80 @@ fn a_checkerboard_lands_where_its_texture_coordinates_put_it() {
 }
 
 // ---------------------------------------------------------------------------
+// Cut-outs
+
+/// A white leaf quad (x, z in [-1, 1], y = 0.5) whose base colour texture
+/// is transparent on its left half (x < 0) and opaque on its right, of
+/// alpha mode `mode`, above a red floor, seen from straight above as
+/// [`checker_quad`] is, lit by the default light.
+fn leaf(mode: &'static str, opacity: f32) -> Vec<u8> {
+    let mut g = Gltf::default();
+    let tex = g.texture(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255], 9728);
+    let leaf = g.material(Mat {
+        base: [1.0, 1.0, 1.0, opacity],
+        base_texture: Some((tex, "")),
+        extra: mode,
+        ..Mat::default()
+    });
+    let floor = g.material(Mat {
+        base: [0.8, 0.1, 0.1, 1.0],
+        ..Mat::default()
+    });
+    let quad = |g: &mut Gltf, s: f32, y: f32, m: usize| {
+        g.quad(
+            [
+                Vec3::new(-s, y, -s),
+                Vec3::new(-s, y, s),
+                Vec3::new(s, y, s),
+                Vec3::new(s, y, -s),
+            ],
+            [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+            m,
+        )
+    };
+    let mesh = quad(&mut g, 1.0, 0.5, leaf);
+    g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    let mesh = quad(&mut g, 2.0, 0.0, floor);
+    g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    let down = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    g.camera(Vec3::new(0.0, 3.0, 0.0), down, 60f32.to_radians(), 1.0);
+    g.glb()
+}
+
+const MASK: &str = r#", "alphaMode": "MASK", "alphaCutoff": 0.5"#;
+const BLEND: &str = r#", "alphaMode": "BLEND""#;
+
+#[test]
+fn an_alpha_mask_cuts_the_surface_out_where_its_texture_is_transparent() {
+    let dir = TempDir::new("mask");
+    let scene = scene_of(&dir, "leaf.glb", &leaf(MASK, 1.0));
+    let n = 64;
+    let rgb = render(&scene, &settings(&scene, n, n, 16)).to_rgb();
+    // The mean colour of the 5 × 5 pixels around the point x of the leaf
+    // (z = 0; 2.5 below the camera).
+    let f = n as f32 / 2.0 / 30f32.to_radians().tan();
+    let at = |x: f32| {
+        let (px, py) = ((n as f32 / 2.0 + f * x / 2.5) as i32, n as i32 / 2);
+        let mut sum = [0.0f32; 3];
+        for dy in -2..=2 {
+            for dx in -2..=2 {
+                let p = rgb[((py + dy) as u32 * n + (px + dx) as u32) as usize];
+                (0..3).for_each(|c| sum[c] += p[c] / 25.0);
+            }
+        }
+        sum
+    };
+    // The left half lets the red floor through; the right half is the
+    // white leaf.
+    let (left, right) = (at(-0.5), at(0.5));
+    assert!(left[0] > 0.02 && left[0] > 3.0 * left[1], "left {left:?}");
+    assert!(
+        right[1] > 0.02 && right[1] > 0.5 * right[0],
+        "right {right:?}"
+    );
+}
+
+// ---------------------------------------------------------------------------
 // Both engines, and reproducibility
 
 /// The two engines trace the same paths, and differ by the order of
@@ -569,6 +647,8 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
     for (name, bytes) in [
         ("textured.glb", shipped_asset()),
         ("checker.glb", checker_quad()),
+        ("mask.glb", leaf(MASK, 1.0)),
+        ("blend.glb", leaf(BLEND, 0.6)),
     ] {
         let scene = scene_of(&dir, name, &bytes);
         for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
@@ -597,9 +677,17 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
 #[test]
 fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
     let dir = TempDir::new("bits");
-    let scene = scene_of(&dir, "textured.glb", &shipped_asset());
-    let base = settings(&scene, 40, 30, 4);
-    let want = render(&scene, &base);
+    for (name, bytes) in [
+        ("textured.glb", shipped_asset()),
+        ("blend.glb", leaf(BLEND, 0.6)),
+    ] {
+        same_whatever_threads_batches_and_lanes(&scene_of(&dir, name, &bytes), name);
+    }
+}
+
+fn same_whatever_threads_batches_and_lanes(scene: &Scene, name: &str) {
+    let base = settings(scene, 40, 30, 4);
+    let want = render(scene, &base);
     assert!(want.sums.iter().any(|s| s != &want.sums[0]));
     let mut variants = Vec::new();
     for threads in [1, 2] {
@@ -612,10 +700,10 @@ fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
     for (threads, batch, simd) in variants {
         let mut s = base.clone();
         (s.threads, s.batch_size, s.simd) = (threads, batch, simd);
-        let got = render(&scene, &s);
+        let got = render(scene, &s);
         assert!(
             got.sums == want.sums,
-            "{threads} threads, batches of {batch}, {simd:?}"
+            "{name}: {threads} threads, batches of {batch}, {simd:?}"
         );
     }
 }

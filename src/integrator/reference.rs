@@ -123,11 +123,25 @@ impl ReferenceTracer {
         self.closest_hit_before(o, d, f32::INFINITY)
     }
 
+    /// The closest hit before `t_max` on a surface that is there: hits
+    /// that a cut-out lets through ([`Tables::passes`]) are passed, and
+    /// the next one beyond each is sought.
     fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
-        match &self.accel {
-            Accel::Bvh(b) => b.closest_hit(o, d, 0.0, t_max),
-            Accel::BruteForce(t, s) => closest_hit_brute_force_prims(t, s, o, d, 0.0, t_max),
+        let cast = |t_min: f32| match &self.accel {
+            Accel::Bvh(b) => b.closest_hit(o, d, t_min, t_max),
+            Accel::BruteForce(t, s) => closest_hit_brute_force_prims(t, s, o, d, t_min, t_max),
+        };
+        let mut hit = cast(0.0);
+        if self.tables.has_cutouts() {
+            let ray = (V3::from(o), V3::from(d));
+            while let Some(h) = hit {
+                if !self.tables.passes(h.triangle as usize, ray, h.t) {
+                    break;
+                }
+                hit = cast(h.t);
+            }
         }
+        hit
     }
 
     /// The radiance arriving at `o` from direction `-d`, for a ray at

@@ -9,6 +9,7 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
 use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
+use crate::scene::material::Coverage;
 use crate::scene::texture::{Texture, TextureRef};
 use crate::scene::{
     Material, Model, Scene, TriangleUv, barycentric, interpolate_normal, interpolate_uv,
@@ -86,6 +87,9 @@ pub struct Tables {
     colours: Vec<([glam::Vec3; 3], [[f32; 4]; 3])>,
     /// The images the materials' maps read.
     textures: Arc<Vec<Texture>>,
+    /// Whether some material is not [`Coverage::Opaque`]: hits are then
+    /// tested for cut-outs ([`Tables::passes`]).
+    cutouts: bool,
 }
 
 impl Tables {
@@ -163,6 +167,7 @@ impl Tables {
                 .map(|(t, c)| (t.v, *c))
                 .collect(),
             textures: scene.texturing.textures.clone(),
+            cutouts: (scene.materials.iter()).any(|m| m.coverage != Coverage::Opaque),
         }
     }
 
@@ -377,6 +382,52 @@ impl Tables {
                 Model::MetallicRoughness => of_mat(&self.metallic),
                 _ => f32x8::ZERO,
             },
+        }
+    }
+
+    /// Whether some surface may let rays through ([`Tables::passes`]).
+    #[inline(always)]
+    pub fn has_cutouts(&self) -> bool {
+        self.cutouts
+    }
+
+    /// Whether the ray `(o, d)` passes through primitive `prim`, which it
+    /// hits at distance `t`: where its material's [`Coverage`] leaves the
+    /// surface out there (alpha: the material's opacity × its base colour
+    /// texture's alpha × the triangle's vertex colour alpha, at the hit).
+    /// `Blend` lets the ray through with probability `1 − alpha`, by a
+    /// number hashed from the bits of `o`, `d` and `prim` (a function of
+    /// the path's numbers, as the engines trace the same rays bit for
+    /// bit). The one test both engines make, for camera, scattered and
+    /// shadow rays.
+    pub fn passes(&self, prim: usize, (o, d): (V3<f32>, V3<f32>), t: f32) -> bool {
+        let m = &self.materials[self.material_of[prim] as usize];
+        if m.coverage == Coverage::Opaque {
+            return false;
+        }
+        let p = hit_point(o, d, t);
+        let uv = self.texcoords(prim, p);
+        let mut alpha = m.opacity;
+        if let Some(t) = &m.maps.base_colour {
+            let at = t.transform.apply(uv[(t.tex_coord as usize).min(1)]);
+            alpha *= self.textures[t.texture as usize].sample(t.sampler, at[0], at[1])[3];
+        }
+        if let Some((v, c)) = self.colours.get(prim) {
+            let b = barycentric(*v, glam::Vec3::from(p));
+            alpha *= c[0][3] * b[0] + c[1][3] * b[1] + c[2][3] * b[2];
+        }
+        match m.coverage {
+            Coverage::Opaque => false,
+            Coverage::Mask(cutoff) => alpha < cutoff,
+            Coverage::Blend => {
+                let mut h = xxhash_rust::xxh3::Xxh3::new();
+                for x in [o.x, o.y, o.z, d.x, d.y, d.z, t] {
+                    h.update(&x.to_bits().to_le_bytes());
+                }
+                h.update(&(prim as u64).to_le_bytes());
+                let u = (h.digest() >> 40) as f32 / (1u32 << 24) as f32;
+                u >= alpha
+            }
         }
     }
 

@@ -7,9 +7,10 @@
 //! [`Model::MetallicRoughness`] material (glTF's Appendix B, in both
 //! engines) of its base colour, metalness and roughness factors, with its
 //! base colour and metallic-roughness textures as [`Maps`] and the
-//! vertex colours `COLOR_0` (looked up per hit). Not yet evaluated per
+//! vertex colours `COLOR_0` (looked up per hit), and its `alphaMode` as
+//! the material's [`Coverage`] (cut-outs in both engines). Not yet evaluated per
 //! hit: emissive textures (they count as their mean colour), normal
-//! textures, alpha (`MASK`/`BLEND` render opaque) and
+//! textures and
 //! `KHR_materials_transmission`, which, at `transmission ≥ ½`, renders
 //! as [`Model::Glass`] of the material's index (the base colour texture
 //! as its mean).
@@ -24,10 +25,10 @@
 //! Images are [`DEFAULT_HEIGHT`] pixels high, as wide as the camera's
 //! aspect ratio (4:3 where the file fixes none).
 
-use super::asset::{Asset, AssetError, PbrMaterial};
+use super::asset::{AlphaMode, Asset, AssetError, PbrMaterial};
 use super::builder::{Origin, SceneBuilder, View};
 use super::camera::Camera;
-use super::material::Maps;
+use super::material::{Coverage, Maps};
 use super::texture::TextureRef;
 use super::{Material, Model, RenderOptions, Scene, SceneError};
 use glam::{Mat4, Vec3};
@@ -121,6 +122,12 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
         out.maps = Maps {
             base_colour: m.base_colour_texture.map(scene_ref),
             metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
+        };
+        out.opacity = m.base_colour[3].clamp(0.0, 1.0);
+        out.coverage = match m.alpha_mode {
+            AlphaMode::Opaque => Coverage::Opaque,
+            AlphaMode::Mask(cutoff) => Coverage::Mask(cutoff),
+            AlphaMode::Blend => Coverage::Blend,
         };
     }
     out

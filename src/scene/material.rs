@@ -111,6 +111,23 @@ impl Maps {
     }
 }
 
+/// Where a material's surface is there (glTF's `alphaMode`), by its
+/// alpha: [`Material::opacity`] × the base colour texture's alpha × the
+/// vertex colour's alpha, at the hit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Coverage {
+    /// Everywhere (alpha is not read).
+    #[default]
+    Opaque,
+    /// Where alpha ≥ the cutoff; rays pass through the rest.
+    Mask(f32),
+    /// With probability alpha: a ray passes with probability 1 − alpha,
+    /// by a number that is a function of the ray's bits and the primitive
+    /// (so of the path's seed, pixel, sample and vertex, like every other
+    /// number).
+    Blend,
+}
+
 /// A material: how it scatters, and what it emits.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -137,6 +154,11 @@ pub struct Material {
     pub roughness: f32,
     /// Textured parameters (none by default).
     pub maps: Maps,
+    /// Where the surface is there ([`Coverage::Opaque`] by default).
+    pub coverage: Coverage,
+    /// The alpha factor of [`Coverage`] (glTF's base colour factor's
+    /// alpha; 1 by default).
+    pub opacity: f32,
 }
 
 impl Material {
@@ -154,6 +176,8 @@ impl Material {
             metallic: 0.0,
             roughness: 1.0,
             maps: Maps::default(),
+            coverage: Coverage::Opaque,
+            opacity: 1.0,
         }
     }
 
@@ -169,6 +193,12 @@ impl Material {
             Model::Metal => vec![Vec3::new(3.0, self.alpha, 0.0)],
             Model::MetallicRoughness => vec![Vec3::new(4.0, self.metallic, self.roughness)],
         };
+        // (Opaque materials hash as before coverage existed.)
+        match self.coverage {
+            Coverage::Opaque => {}
+            Coverage::Mask(c) => words.push(Vec3::new(5.0, c, self.opacity)),
+            Coverage::Blend => words.push(Vec3::new(6.0, 0.0, self.opacity)),
+        }
         // (Constant materials hash as before textures existed.)
         for (k, t) in [&self.maps.base_colour, &self.maps.metallic_roughness]
             .into_iter()

@@ -184,8 +184,9 @@ impl WavefrontEngine {
                 time.time(Stage::Light, || {
                     light::sample_lights(queue, &bins, &ctx, shadows)
                 });
-                let shadow_rays =
-                    time.time(Stage::Shadow, || shadow::shadow(queue, shadows, ctx.bvh));
+                let shadow_rays = time.time(Stage::Shadow, || {
+                    shadow::shadow(queue, shadows, ctx.bvh, ctx.tables)
+                });
                 counters.rays += shadow_rays;
                 counters.shadow_rays += shadow_rays;
             }

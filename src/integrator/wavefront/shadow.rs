@@ -6,6 +6,8 @@ use super::queue::PathQueue;
 use crate::accel::bvh::Bvh;
 use crate::accel::simd::Lanes;
 use crate::integrator::nee::ShadowRay;
+use crate::integrator::tables::Tables;
+use crate::math::V3;
 use wide::f32x8;
 
 /// Shadow rays, in columns (so that the hierarchy tests them 8 or 16 at a
@@ -103,13 +105,41 @@ impl ShadowQueue {
 /// surface, [`crate::integrator::offset`]); for each one that nothing blocks, the
 /// path's radiance gains throughput × the ray's radiance (in queue order).
 /// Returns the number of rays traced.
-pub fn shadow<P>(queue: &mut PathQueue<P>, shadows: &mut ShadowQueue, bvh: &Bvh) -> u64 {
+pub fn shadow<P>(
+    queue: &mut PathQueue<P>,
+    shadows: &mut ShadowQueue,
+    bvh: &Bvh,
+    tables: &Tables,
+) -> u64 {
     let n = shadows.len();
     let s = &mut *shadows;
     s.occluded.resize(n, false);
     let (o, d) = (s.origin.each_ref(), s.dir.each_ref());
     let (o, d) = (o.map(|c| &c[..n]), d.map(|c| &c[..n]));
     bvh.occluded_columns(o, d, 0.0, &s.t_max[..n], &mut s.occluded[..n]);
+    if tables.has_cutouts() {
+        // A blocked ray is blocked only by a surface that is there: its
+        // hits are walked from the closest, past those that let it
+        // through, as the reference tracer walks them.
+        for k in 0..n {
+            if !s.occluded[k] {
+                continue;
+            }
+            let ray = (
+                V3::new(o[0][k], o[1][k], o[2][k]),
+                V3::new(d[0][k], d[1][k], d[2][k]),
+            );
+            let cast = |t_min: f32| bvh.closest_hit(ray.0.into(), ray.1.into(), t_min, s.t_max[k]);
+            let mut hit = cast(0.0);
+            while let Some(h) = hit {
+                if !tables.passes(h.triangle as usize, ray, h.t) {
+                    break;
+                }
+                hit = cast(h.t);
+            }
+            s.occluded[k] = hit.is_some();
+        }
+    }
     let (radiance, beta) = (&mut queue.radiance, &queue.beta);
     for (k, _) in s.occluded[..n].iter().enumerate().filter(|(_, b)| !**b) {
         let i = s.row[k] as usize;
@@ -217,7 +247,8 @@ mod tests {
                     expected[row][c] += queue.beta[c][row] * l[c];
                 }
             }
-            assert_eq!(shadow(&mut queue, &mut shadows, &bvh), rows as u64);
+            let tables = Tables::new(&scene);
+            assert_eq!(shadow(&mut queue, &mut shadows, &bvh, &tables), rows as u64);
             for (i, e) in expected.iter().enumerate() {
                 let got = [0, 1, 2].map(|c| queue.radiance[c][i]);
                 assert_eq!(got.map(f32::to_bits), e.map(f32::to_bits), "row {i}");
