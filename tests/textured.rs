@@ -567,7 +567,7 @@ fn a_checkerboard_lands_where_its_texture_coordinates_put_it() {
 /// A white leaf quad (x, z in [-1, 1], y = 0.5) whose base colour texture
 /// is transparent on its left half (x < 0) and opaque on its right, of
 /// alpha mode `mode`, above a red floor, seen from straight above as
-/// [`checker_quad`] is, lit by the default light.
+/// [`checker_quad`] is, lit by the default sky.
 fn leaf(mode: &'static str, opacity: f32) -> Vec<u8> {
     let mut g = Gltf::default();
     let tex = g.texture(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255], 9728);
