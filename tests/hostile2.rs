@@ -444,6 +444,8 @@ fn inputs_dir(name: &str) -> TempDir {
     std::fs::write(dir.join("p.toml"), "spp = 1\nwidth = 8\nheight = 8\n").unwrap();
     let rgb = vec![[0.25f32; 3]; 64];
     wavetrace::output::write_image(&dir.join("r.pfm"), 8, 8, &rgb).unwrap();
+    // (An environment is an .exr or .hdr image.)
+    wavetrace::output::write_image(&dir.join("r.exr"), 8, 8, &rgb).unwrap();
     dir
 }
 
@@ -564,10 +566,10 @@ fn a_render_refuses_an_output_that_is_an_input() {
     // The environment image, of the scene or of --env.
     cases.push((
         with(&[
-            "s.toml", "--env", "r.pfm", "--out", "o.png", "--stats", "r.pfm",
+            "s.toml", "--env", "r.exr", "--out", "o.png", "--stats", "r.exr",
         ]),
         "--stats",
-        "r.pfm",
+        "r.exr",
     ));
     // The reference of the AOV case, named like an AOV file of --out.
     std::fs::copy(dir.join("r.pfm"), dir.join("ref.albedo.pfm")).unwrap();
