@@ -1,5 +1,6 @@
 //! Property-based fuzzing of every input wavetrace reads: scene files
-//! (TOML), meshes (OBJ and MTL) and accumulation files (`.wtacc`).
+//! (TOML), meshes (OBJ and MTL), accumulation files (`.wtacc`) and EXR
+//! images; and of command lines whose outputs name their inputs.
 //!
 //! Valid inputs are mutated (numbers swapped for hostile ones, lines
 //! deleted, duplicated or inserted, bytes flipped, files truncated), and
@@ -822,5 +823,397 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+// --- Outputs that name inputs ---
+
+/// Every file under `dir` (recursively) and its bytes, links as their
+/// targets.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut all = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let path = e.unwrap().path();
+            let meta = std::fs::symlink_metadata(&path).unwrap();
+            if meta.is_dir() {
+                stack.push(path);
+            } else if meta.is_symlink() {
+                let to = std::fs::read_link(&path).unwrap();
+                all.push((path, to.into_os_string().into_encoded_bytes()));
+            } else {
+                all.push((path.clone(), std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    all.sort();
+    all
+}
+
+/// The inputs of the fixture of [`outputs_naming_inputs`], and the
+/// arguments that make a command read each: (file, command line before
+/// the output flag). Render reads the scene, its mesh and MTL file, a
+/// profile, a reference, an environment image and a checkpoint to
+/// resume; denoise its image; merge its parts; converge its scene and
+/// reference.
+const INPUTS: &[(&str, &[&str])] = &[
+    ("s.toml", &["s.toml"]),
+    ("obj.toml", &["obj.toml"]),
+    ("meshes/crate.obj", &["obj.toml"]),
+    ("meshes/crate.mtl", &["obj.toml"]),
+    ("p.toml", &["s.toml", "--profile", "p.toml"]),
+    ("r.pfm", &["s.toml", "--reference", "r.pfm"]),
+    ("in.exr", &["s.toml", "--env", "in.exr"]),
+    (
+        "m.wtacc",
+        &["s.toml", "--resume", "m.wtacc", "--checkpoint", "c.wtacc"],
+    ),
+    ("r.pfm", &["denoise", "r.pfm"]),
+    ("in.exr", &["denoise", "in.exr"]),
+    ("m.wtacc", &["merge", "m.wtacc"]),
+    ("s.toml", &["converge", "s.toml", "--reference", "r.pfm"]),
+    ("r.pfm", &["converge", "s.toml", "--reference", "r.pfm"]),
+];
+
+/// How an output names its input: the same path, spelled otherwise
+/// (`./x`, `meshes/../x`, absolute), or through a symbolic or hard link.
+#[derive(Clone, Copy, Debug)]
+enum Naming {
+    Same,
+    Dotted,
+    Detour,
+    Absolute,
+    Symlink,
+    HardLink,
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// A random output flag of a command naming a random one of its
+    /// inputs, spelled any way or through a link: refused (exit 1) before
+    /// any work, the error naming the output, and every file as it was.
+    #[test]
+    fn outputs_naming_inputs(
+        input in 0..INPUTS.len(),
+        flag in 0usize..6,
+        naming in select(&[Naming::Same, Naming::Dotted, Naming::Detour, Naming::Absolute, Naming::Symlink, Naming::HardLink][..]),
+    ) {
+        let dir = fixture();
+        let (file, reads) = INPUTS[input];
+        let command = reads[0];
+        // A resumed render's checkpoint is given already (and may be the
+        // file it resumes): --stats names it instead.
+        let flag = if reads.contains(&"--resume") && flag == 5 { 0 } else { flag };
+        // The output's extension where the flag wants one.
+        let ext = match (command, flag) {
+            ("denoise", _) | ("merge", _) | (_, 1) => Some("pfm"),
+            ("converge", _) => Some("csv"),
+            (_, 2) => Some("wtacc"),
+            (_, 3) => Some("pfm"),
+            _ => None,
+        };
+        let fits = ext.is_none_or(|e| file.ends_with(e));
+        let link = |name: &str| {
+            let at = dir.join(name);
+            if matches!(naming, Naming::HardLink) {
+                std::fs::hard_link(dir.join(file), &at).unwrap();
+            } else {
+                std::os::unix::fs::symlink(dir.join(file), &at).unwrap();
+            }
+            name.to_string()
+        };
+        // An AOV file of --out a.pfm: render's (--aov albedo), merge's and
+        // denoise's of an EXR (any AOV the parts or layers may hold).
+        let aov = flag == 4 && !(command == "denoise" && file == "r.pfm");
+        let flag = if command == "denoise" && file == "r.pfm" && flag == 4 { 1 } else { flag };
+        // For converge the name is a --prefix whose CSV is the input.
+        let named = if command == "converge" {
+            link("k.csv");
+            "k".to_string()
+        } else if aov {
+            link("a.albedo.pfm"); // the AOV file of --out a.pfm
+            "a.pfm".to_string()
+        } else {
+            match naming {
+                _ if !fits => link(&format!("l.{}", ext.unwrap())),
+                Naming::Same => file.to_string(),
+                Naming::Dotted => format!("./{file}"),
+                Naming::Detour => format!("meshes/../{file}"),
+                Naming::Absolute => p(&dir.join(file)).to_string(),
+                Naming::Symlink | Naming::HardLink => {
+                    link(&format!("l.{}", ext.unwrap_or("json")))
+                }
+            }
+        };
+        let small = ["--width", "8", "--height", "8", "--spp", "1"];
+        let mut args: Vec<&str> = reads.to_vec();
+        match (command, flag) {
+            ("denoise", _) | ("merge", _) => args.extend(["--out", &named]),
+            ("converge", _) => args.extend(["--prefix", &named]),
+            (_, 0) => args.extend(["--out", "o.png", "--stats", &named]),
+            (_, 1) => args.extend(["--out", &named]),
+            (_, 2) => args.extend(["--out", "o.png", "--partial", &named]),
+            (_, 3) => args.extend(["--out", "o.png", "--denoise", "--keep-noisy", &named]),
+            (_, 4) => args.extend(["--out", &named, "--aov", "albedo"]),
+            _ => args.extend(["--out", "o.png", "--checkpoint", &named]),
+        }
+        if command != "denoise" && command != "merge" {
+            args.extend(small);
+        }
+        let before = snapshot(&dir);
+        let o = run_with_limit(&dir, &args, CASE_TIME);
+        let e = stderr(&o);
+        prop_assert_eq!(o.status.code(), Some(1), "{:?}: {}", args, text(&o));
+        prop_assert!(!e.contains("panicked"), "{:?}: {}", args, e);
+        let shown = match command {
+            "converge" => "k.csv",
+            _ if aov => "a.albedo.pfm",
+            _ => named.as_str(),
+        };
+        prop_assert!(e.contains(shown), "{:?}: {}", args, e);
+        prop_assert!(snapshot(&dir) == before, "{:?}: a file changed", args);
+    }
+}
+
+/// The fixture of [`outputs_naming_inputs`]: the Cornell box, the OBJ
+/// scene with its mesh and MTL, a profile, 8x8 images (PFM and EXR) and a
+/// partial file of the box.
+fn fixture() -> TempDir {
+    let dir = TempDir::new("out-in");
+    std::fs::copy("scenes/cornell.toml", dir.join("s.toml")).unwrap();
+    std::fs::copy("scenes/cornell-obj.toml", dir.join("obj.toml")).unwrap();
+    std::fs::create_dir(dir.join("meshes")).unwrap();
+    for f in ["crate.obj", "crate.mtl"] {
+        std::fs::copy(format!("scenes/meshes/{f}"), dir.join("meshes").join(f)).unwrap();
+    }
+    std::fs::write(dir.join("p.toml"), "spp = 1\n").unwrap();
+    let rgb = vec![[0.25f32; 3]; 64];
+    wavetrace::output::write_image(&dir.join("r.pfm"), 8, 8, &rgb).unwrap();
+    wavetrace::output::write_image(&dir.join("in.exr"), 8, 8, &rgb).unwrap();
+    let mut s = wavetrace::render::RenderSettings::for_scene(&Scene::cornell());
+    (s.width, s.height, s.spp, s.threads) = (8, 8, 1, 1);
+    let film = Renderer::new(&Scene::cornell(), &s).unwrap().new_film();
+    film.save(&dir.join("m.wtacc"), 0).unwrap();
+    dir
+}
+
+// --- Hostile EXR headers ---
+
+/// The system allocator, recording the largest single allocation each
+/// thread asks for, so that a test can check what reading a file
+/// allocated.
+struct Measured;
+
+thread_local! {
+    static LARGEST: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+// SAFETY: every call is passed to the system allocator unchanged; the
+// bookkeeping only reads and writes a thread-local counter (no allocation).
+unsafe impl std::alloc::GlobalAlloc for Measured {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(layout.size())));
+        // SAFETY: the caller's contract, passed on.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(layout.size())));
+        // SAFETY: the caller's contract, passed on.
+        unsafe { std::alloc::System.alloc_zeroed(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: the caller's contract, passed on.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, size: usize) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(size)));
+        // SAFETY: the caller's contract, passed on.
+        unsafe { std::alloc::System.realloc(ptr, layout, size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Measured = Measured;
+
+/// The largest single allocation `f` made on this thread.
+fn largest_allocation<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    LARGEST.with(|m| m.set(0));
+    let out = f();
+    (out, LARGEST.with(|m| m.get()))
+}
+
+/// Where attribute `name`'s size field and value lie in an EXR header:
+/// (offset of the 4-byte size, offset of the value, the size).
+fn exr_attribute(bytes: &[u8], name: &str) -> Option<(usize, usize, usize)> {
+    let key = format!("{name}\0");
+    let at = bytes.windows(key.len()).position(|w| w == key.as_bytes())?;
+    let type_end = at + key.len() + bytes[at + key.len()..].iter().position(|&b| b == 0)?;
+    let size_at = type_end + 1;
+    let size = i32::from_le_bytes(bytes.get(size_at..size_at + 4)?.try_into().ok()?);
+    Some((size_at, size_at + 4, size.max(0) as usize))
+}
+
+/// A way to make a valid EXR hostile.
+#[derive(Clone, Debug)]
+enum ExrEdit {
+    /// dataWindow or displayWindow set to these corners.
+    Window(bool, [i32; 4]),
+    /// The compression byte.
+    Compression(u8),
+    /// A byte of the channel list set (names, pixel types, sampling).
+    Channels(usize, u8),
+    /// An attribute's size field set.
+    AttributeSize(usize, i32),
+    /// A byte anywhere in the first 400 (the header, the offset table).
+    Byte(usize, u8),
+    /// The file cut short.
+    Truncate(usize),
+    /// Zero bytes appended (room for a forged window's offset table).
+    Pad(usize),
+}
+
+fn hostile_i32() -> impl Strategy<Value = i32> {
+    prop_oneof![
+        select(
+            &[
+                0,
+                -1,
+                1,
+                7,
+                8,
+                29_999,
+                65_535,
+                1 << 20,
+                i32::MAX,
+                i32::MIN,
+                i32::MAX - 1
+            ][..]
+        ),
+        any::<i32>(),
+    ]
+}
+
+fn exr_edit() -> impl Strategy<Value = ExrEdit> {
+    prop_oneof![
+        3 => (any::<bool>(), proptest::array::uniform4(hostile_i32())).prop_map(|(d, c)| ExrEdit::Window(d, c)),
+        1 => any::<u8>().prop_map(ExrEdit::Compression),
+        2 => (any::<usize>(), any::<u8>()).prop_map(|(i, b)| ExrEdit::Channels(i, b)),
+        1 => (0usize..8, hostile_i32()).prop_map(|(i, s)| ExrEdit::AttributeSize(i, s)),
+        2 => (0usize..400, any::<u8>()).prop_map(|(i, b)| ExrEdit::Byte(i, b)),
+        1 => any::<usize>().prop_map(ExrEdit::Truncate),
+        2 => (0usize..1 << 18).prop_map(ExrEdit::Pad),
+    ]
+}
+
+fn apply_exr(bytes: &mut Vec<u8>, e: &ExrEdit) {
+    match *e {
+        ExrEdit::Window(data, corners) => {
+            let name = if data { "dataWindow" } else { "displayWindow" };
+            if let Some((_, at, 16)) = exr_attribute(bytes, name)
+                && at + 16 <= bytes.len()
+            {
+                bytes[at..at + 16].copy_from_slice(&corners.map(i32::to_le_bytes).concat());
+            }
+        }
+        ExrEdit::Compression(c) => {
+            if let Some((_, at, 1)) = exr_attribute(bytes, "compression")
+                && at < bytes.len()
+            {
+                bytes[at] = c;
+            }
+        }
+        ExrEdit::Channels(i, b) => {
+            if let Some((_, at, size)) = exr_attribute(bytes, "channels")
+                && size > 0
+                && at + size <= bytes.len()
+            {
+                bytes[at + i % size] = b;
+            }
+        }
+        ExrEdit::AttributeSize(i, s) => {
+            let names = [
+                "channels",
+                "compression",
+                "dataWindow",
+                "displayWindow",
+                "lineOrder",
+                "pixelAspectRatio",
+                "screenWindowCenter",
+                "screenWindowWidth",
+            ];
+            if let Some((size_at, _, _)) = exr_attribute(bytes, names[i]) {
+                bytes[size_at..size_at + 4].copy_from_slice(&s.to_le_bytes());
+            }
+        }
+        ExrEdit::Byte(i, b) => {
+            if i < bytes.len() {
+                bytes[i] = b;
+            }
+        }
+        ExrEdit::Truncate(at) => bytes.truncate(at % bytes.len().max(1)),
+        ExrEdit::Pad(n) => bytes.resize(bytes.len() + n, 0),
+    }
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// A valid 8x8 EXR with its header mutated or forged (huge, negative
+    /// or inverted windows, unknown compressions, broken channel lists,
+    /// attribute sizes past the file, truncations): read in-process as an
+    /// image, a reference and an AOV layer, and a share by the binary
+    /// (`denoise`, `--reference`), no case panics or allocates past its
+    /// file's worth; each is an image of the size it claims or an error
+    /// naming the file, and the file is never written.
+    #[test]
+    fn hostile_exr_headers(edits in proptest::collection::vec(exr_edit(), 1..4), cli in 0u8..6) {
+        let dir = TempDir::new("exr");
+        let path = dir.join("h.exr");
+        let rgb = vec![[0.5f32; 3]; 64];
+        wavetrace::output::write_image(&path, 8, 8, &rgb).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        for e in &edits {
+            apply_exr(&mut bytes, e);
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        let start = Instant::now();
+        let (read, largest) = largest_allocation(|| wavetrace::output::read_image(&path));
+        match read {
+            Ok(image) => prop_assert_eq!(image.rgb.len(), (image.width * image.height) as usize),
+            Err(e) => prop_assert!(e.to_string().contains("h.exr"), "{}", e),
+        }
+        // No more than the file can hold: its bytes at its compression's
+        // largest ratio (docs/hostile-input.md), twice over for 16-bit
+        // samples read as 32-bit ones, and a megabyte of the reader's own.
+        let ratio = match exr_attribute(&bytes, "compression").and_then(|(_, at, _)| bytes.get(at)) {
+            Some(0) => 1,
+            Some(1) => 64,
+            Some(2 | 3 | 5) => 2064,
+            Some(6) => 3,
+            Some(7) => 11,
+            _ => 65536,
+        };
+        let most = bytes.len() * ratio * 2 + (1 << 20);
+        prop_assert!(largest <= most, "{:?}: allocated {} bytes for a file of {}", edits, largest, bytes.len());
+        if let Err(e) = wavetrace::output::read_radiance(&path, "the reference") {
+            prop_assert!(e.to_string().contains("h.exr"), "{}", e);
+        }
+        if let Err(e) = wavetrace::output::read_exr_layer(&path, "albedo", &["R", "G", "B"]) {
+            prop_assert!(e.to_string().contains("h.exr"), "{}", e);
+        }
+        prop_assert!(start.elapsed() < CASE_TIME, "{:?}", edits);
+        let args: Option<Vec<&str>> = match cli {
+            0 => Some(vec!["denoise", "h.exr", "--out", "d.pfm"]),
+            1 => Some(vec!["--reference", "h.exr", "--width", "8", "--height", "8", "--spp", "1", "--out", "o.png"]),
+            _ => None,
+        };
+        if let Some(args) = args {
+            let o = run_with_limit(&dir, &args, CASE_TIME);
+            prop_assert!(matches!(o.status.code(), Some(0 | 1)), "{:?}: {}", edits, text(&o));
+            prop_assert!(!stderr(&o).contains("panicked"), "{}", text(&o));
+        }
+        prop_assert!(std::fs::read(&path).unwrap() == bytes, "h.exr changed");
     }
 }

@@ -14,6 +14,13 @@ use wavetrace::accel::sphere::Sphere;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::Scene;
 
+/// A file of the hostile corpus, `tests/data/hostile/NAME`.
+fn data(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/hostile")
+        .join(name)
+}
+
 /// `cornell-spheres.toml` with its glass ball's index of refraction `ior`.
 fn spheres_with_ior(ior: &str) -> String {
     let text = std::fs::read_to_string("scenes/cornell-spheres.toml").unwrap();
@@ -313,10 +320,7 @@ fn an_exr_header_larger_than_its_file_is_refused() {
 /// vertices or more as a face): they are skipped, the faces kept.
 #[test]
 fn obj_polylines_and_points_are_skipped() {
-    let dir = TempDir::new("polyline");
-    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nl 1 2 3 4\np 1 2\nf 1 2 3\n  l 2 3 4\nf 2 4 3\n";
-    std::fs::write(dir.join("m.obj"), obj).unwrap();
-    let mesh = wavetrace::scene::obj::load(&dir.join("m.obj"), false).unwrap();
+    let mesh = wavetrace::scene::obj::load(&data("polyline.obj"), false).unwrap();
     assert_eq!(mesh.triangles.len(), 2, "the two faces, no polyline");
 }
 
@@ -325,10 +329,7 @@ fn obj_polylines_and_points_are_skipped() {
 /// the others keep theirs.
 #[test]
 fn obj_zero_vertex_normals_fall_back_to_the_flat_normal() {
-    let dir = TempDir::new("vn0");
-    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nvn 0.6 0 0.8\nf 1//1 2//2 3//1\n";
-    std::fs::write(dir.join("m.obj"), obj).unwrap();
-    let mesh = wavetrace::scene::obj::load(&dir.join("m.obj"), false).unwrap();
+    let mesh = wavetrace::scene::obj::load(&data("zero-normal.obj"), false).unwrap();
     let flat = Vec3::Z; // (1,0,0) × (0,1,0)
     assert_eq!(
         mesh.normals,
