@@ -47,6 +47,8 @@ struct Mat {
     mr_texture: Tex,
     emissive: [f32; 3],
     strength: f32,
+    emissive_texture: Tex,
+    normal_texture: Tex,
     /// Extra JSON of the material (e.g. its `alphaMode`).
     extra: &'static str,
 }
@@ -61,6 +63,8 @@ impl Default for Mat {
             mr_texture: None,
             emissive: [0.0; 3],
             strength: 1.0,
+            emissive_texture: None,
+            normal_texture: None,
             extra: "",
         }
     }
@@ -222,13 +226,15 @@ impl Gltf {
             ),
         };
         let item = format!(
-            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": {:?}, "metallicFactor": {:?}, "roughnessFactor": {:?}{}{}}}, "emissiveFactor": {:?}{strength}{}}}"#,
+            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": {:?}, "metallicFactor": {:?}, "roughnessFactor": {:?}{}{}}}, "emissiveFactor": {:?}{strength}{}{}{}}}"#,
             m.base,
             m.metallic,
             m.roughness,
             tex("baseColorTexture", m.base_texture),
             tex("metallicRoughnessTexture", m.mr_texture),
             m.emissive,
+            tex("emissiveTexture", m.emissive_texture),
+            tex("normalTexture", m.normal_texture),
             m.extra,
         );
         push(&mut self.materials, item)
@@ -636,6 +642,189 @@ fn an_alpha_mask_cuts_the_surface_out_where_its_texture_is_transparent() {
 }
 
 // ---------------------------------------------------------------------------
+// Emissive textures
+
+/// The sRGB curve's decoding of the 8-bit value `c`.
+fn srgb(c: u8) -> f32 {
+    let c = c as f64 / 255.0;
+    (if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }) as f32
+}
+
+/// The texels of [`emissive_wall`]'s 2 × 2 emissive texture: orange, blue
+/// (top row), green, white.
+const WALL_TEXELS: [[u8; 4]; 4] = [
+    [255, 128, 0, 255],
+    [0, 0, 255, 255],
+    [0, 255, 0, 255],
+    [255, 255, 255, 255],
+];
+
+/// `emissiveFactor` × `KHR_materials_emissive_strength` of the wall.
+const WALL_FACTOR: [f32; 3] = [2.0, 1.0, 3.0];
+const WALL_STRENGTH: f32 = 2.0;
+
+/// An emitting wall (x in [-1, 1], y in [0.1, 1.1], z = -1, facing +z)
+/// whose emissive texture (nearest) is [`WALL_TEXELS`] over its four
+/// quarters — texture coordinates `u` from left to right, `v` from top to
+/// bottom — black in base colour, standing on a white floor that only it
+/// lights, seen from the front and above.
+fn emissive_wall() -> Vec<u8> {
+    let mut g = Gltf::default();
+    let tex = g.texture(2, 2, WALL_TEXELS.concat(), 9728);
+    let wall = g.material(Mat {
+        base: [0.0, 0.0, 0.0, 1.0],
+        emissive: WALL_FACTOR,
+        strength: WALL_STRENGTH,
+        emissive_texture: Some((tex, "")),
+        ..Mat::default()
+    });
+    let floor = g.material(Mat {
+        base: [0.8, 0.8, 0.8, 1.0],
+        ..Mat::default()
+    });
+    let mesh = g.quad(
+        [
+            Vec3::new(-1.0, 0.1, -1.0),
+            Vec3::new(1.0, 0.1, -1.0),
+            Vec3::new(1.0, 1.1, -1.0),
+            Vec3::new(-1.0, 1.1, -1.0),
+        ],
+        [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+        wall,
+    );
+    g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    // The floor (x in [-1.5, 1.5], z in [-1, 2]) sees the wall from the
+    // front only, none of it at a grazing angle.
+    let mesh = g.quad(
+        [
+            Vec3::new(-1.5, 0.0, -1.0),
+            Vec3::new(-1.5, 0.0, 2.0),
+            Vec3::new(1.5, 0.0, 2.0),
+            Vec3::new(1.5, 0.0, -1.0),
+        ],
+        [[0.0; 2]; 4],
+        floor,
+    );
+    g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    let pitch = -(0.7f32 / 4.0).atan();
+    g.camera(
+        Vec3::new(0.0, 1.2, 3.0),
+        Quat::from_rotation_x(pitch),
+        0.9,
+        4.0 / 3.0,
+    );
+    g.glb()
+}
+
+/// A camera ray that hits the wall sees `emissiveFactor` × strength × the
+/// sRGB-decoded texel where it lands, exactly (at depth 1 nothing else
+/// adds): each quarter of the wall shows its own texel, the orange one at
+/// the top left, blue top right, green bottom left, white bottom right —
+/// in both engines.
+#[test]
+fn an_emissive_texture_shines_where_its_texture_coordinates_put_it() {
+    let dir = TempDir::new("emissive");
+    let scene = scene_of(&dir, "wall.glb", &emissive_wall());
+    let want: Vec<[f32; 3]> = WALL_TEXELS
+        .iter()
+        .map(|t| std::array::from_fn(|c| WALL_FACTOR[c] * WALL_STRENGTH * srgb(t[c])))
+        .collect();
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        let (w, h) = (64, 48);
+        let mut s = settings(&scene, w, h, 8);
+        (s.engine, s.max_depth) = (engine, 1);
+        let rgb = render(&scene, &s).to_rgb();
+        // Per texel: how many pixels show exactly it, and their mean x, y.
+        let mut found = [(0usize, 0.0f32, 0.0f32); 4];
+        let mut others = 0;
+        for (i, p) in rgb.iter().enumerate() {
+            let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+            let close = |a: &[f32; 3]| (0..3).all(|c| (p[c] - a[c]).abs() <= 1e-5 * a[c].max(1.0));
+            match want.iter().position(close) {
+                Some(k) => {
+                    let f = &mut found[k];
+                    (f.0, f.1, f.2) = (f.0 + 1, f.1 + x, f.2 + y);
+                }
+                None if p.iter().all(|&v| v == 0.0) => {}
+                None => others += 1,
+            }
+        }
+        let at = found.map(|(n, x, y)| (n, x / n.max(1) as f32, y / n.max(1) as f32));
+        for (k, (n, ..)) in at.iter().enumerate() {
+            assert!(*n >= 30, "{engine:?}: texel {k} in {n} pixels only: {at:?}");
+        }
+        // Orange left of blue, green left of white; orange above green,
+        // blue above white.
+        assert!(at[0].1 < at[1].1 && at[2].1 < at[3].1, "{engine:?}: {at:?}");
+        assert!(at[0].2 < at[2].2 && at[1].2 < at[3].2, "{engine:?}: {at:?}");
+        // Only the wall's edges mix texels with the black floor.
+        assert!(others < 160, "{engine:?}: {others} pixels of no texel");
+    }
+}
+
+/// Per pixel and channel of the wall scene, the mean over `K` seeds of
+/// `spp`-sample images of estimator `integrator`, and the squared
+/// standard error of that mean.
+fn wall_estimate(scene: &Scene, integrator: Integrator, spp: u32) -> Vec<(f64, f64)> {
+    const K: u64 = 12;
+    let images: Vec<Vec<f64>> = (0..K)
+        .map(|k| {
+            let mut s = settings(scene, 16, 12, spp);
+            (s.integrator, s.seed, s.max_depth) = (integrator, 500 + k, 3);
+            let film = render(scene, &s);
+            assert_eq!(film.invalid_samples, 0);
+            film.to_rgb().iter().flatten().map(|&v| v as f64).collect()
+        })
+        .collect();
+    (0..images[0].len())
+        .map(|i| {
+            let mean = images.iter().map(|im| im[i]).sum::<f64>() / K as f64;
+            let var = images.iter().map(|im| (im[i] - mean).powi(2)).sum::<f64>() / (K - 1) as f64;
+            (mean, var / K as f64)
+        })
+        .collect()
+}
+
+/// Next-event estimation picks the wall by its mean power but weighs the
+/// point it samples by the texture there, as a scattered ray that hits the
+/// wall does: its image and the BSDF-sampling estimator's agree within
+/// their noise (per pixel and channel, z = difference / standard error;
+/// mean z² near 1, no |z| far in the tail); and the floor is lit by the
+/// wall's colours where they are.
+#[test]
+fn light_sampling_weighs_an_emissive_texture_as_scattered_rays_see_it() {
+    let dir = TempDir::new("emissive-z");
+    let scene = scene_of(&dir, "wall.glb", &emissive_wall());
+    let nee = wall_estimate(&scene, Integrator::Nee, 32);
+    let bsdf = wall_estimate(&scene, Integrator::Bsdf, 256);
+    let z: Vec<f64> = (nee.iter().zip(&bsdf))
+        .map(|(&(ma, va), &(mb, vb))| match va + vb {
+            0.0 if ma == mb => 0.0,
+            0.0 => f64::INFINITY,
+            v => (ma - mb) / v.sqrt(),
+        })
+        .collect();
+    let mean_z2 = z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64;
+    let max_z = z.iter().fold(0.0f64, |m, z| z.abs().max(m));
+    assert!(
+        mean_z2 < 1.6 && max_z < 7.0,
+        "nee and bsdf disagree: mean z² {mean_z2:.3}, max |z| {max_z:.2}"
+    );
+    // The floor just in front of the wall's green quarter is greener
+    // (against blue) than in front of its white quarter.
+    let px = |x: usize, y: usize| &nee[(y * 16 + x) * 3..(y * 16 + x) * 3 + 3];
+    let (l, r) = (px(5, 8), px(10, 8));
+    assert!(
+        l[1].0 / l[2].0 > 2.0 * r[1].0 / r[2].0,
+        "left {l:?}, right {r:?}"
+    );
+}
+
+// ---------------------------------------------------------------------------
 // Both engines, and reproducibility
 
 /// The two engines trace the same paths, and differ by the order of
@@ -649,6 +838,7 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
         ("checker.glb", checker_quad()),
         ("mask.glb", leaf(MASK, 1.0)),
         ("blend.glb", leaf(BLEND, 0.6)),
+        ("wall.glb", emissive_wall()),
     ] {
         let scene = scene_of(&dir, name, &bytes);
         for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
@@ -680,6 +870,7 @@ fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
     for (name, bytes) in [
         ("textured.glb", shipped_asset()),
         ("blend.glb", leaf(BLEND, 0.6)),
+        ("wall.glb", emissive_wall()),
     ] {
         same_whatever_threads_batches_and_lanes(&scene_of(&dir, name, &bytes), name);
     }

@@ -94,7 +94,16 @@ pub struct Emitter<R = f32> {
     /// rounding of a shadow ray's end on it is proportional to
     /// ([`crate::integrator::offset`]).
     pub scale: R,
+    /// The bits of its primitive's index (a parallelogram: its first
+    /// triangle's; [`NO_PRIM_BITS`] for none): where a point on it reads
+    /// a textured emission ([`Tables::light_emission`](super::tables::Tables::light_emission)).
+    pub prim: R,
 }
+
+/// [`Emitter::prim`] of no primitive (the environment, [`Emitter::NONE`]):
+/// `f32::MAX`, whose bits index past any scene's primitives (and, unlike a
+/// NaN, equal themselves).
+pub const NO_PRIM_BITS: f32 = f32::MAX;
 
 /// In [`Lights::emitter_of`]: the primitive does not emit.
 const NOT_EMITTER: u32 = u32::MAX;
@@ -109,7 +118,7 @@ const ZERO: V3<f32> = V3 {
 };
 
 /// Number of floats in an [`Emitter`].
-const EMITTER_FLOATS: usize = 29;
+const EMITTER_FLOATS: usize = 30;
 
 impl Emitter {
     /// The emitter's floats, in field order.
@@ -137,6 +146,7 @@ impl Emitter {
             self.lengths[0],
             self.lengths[1],
             self.scale,
+            self.prim,
         ]);
         f
     }
@@ -157,6 +167,7 @@ impl Emitter {
         axes: [ZERO; 2],
         lengths: [0.0; 2],
         scale: 0.0,
+        prim: NO_PRIM_BITS,
     };
 }
 
@@ -179,6 +190,7 @@ impl<R: Real> Emitter<R> {
             rectangle: f[25],
             lengths: [f[26], f[27]],
             scale: f[28],
+            prim: f[29],
         }
     }
 }
@@ -325,6 +337,8 @@ pub struct LightPoint<R> {
     pub pdf_solid_angle: R,
     /// The emitter's [`Emitter::scale`].
     pub scale: R,
+    /// The emitter's [`Emitter::prim`] (bits).
+    pub prim: R,
 }
 
 impl<R: Real> LightPoint<R> {
@@ -362,6 +376,7 @@ impl<R: Real> LightPoint<R> {
             pdf_area: e.pdf_area,
             pdf_solid_angle: R::splat(0.0),
             scale: e.scale,
+            prim: e.prim,
         }
     }
 
@@ -411,7 +426,15 @@ impl Lights {
                 power > 0.0 && power.is_finite()
             })
             .collect();
-        let partner = parallelogram_partners(&scene.triangles, &emissive);
+        let mut partner = parallelogram_partners(&scene.triangles, &emissive);
+        // A textured emission is looked up at the point's triangle: such
+        // triangles stay emitters of their own.
+        for (k, &i) in emissive.iter().enumerate() {
+            let m = scene.triangles[i].material as usize;
+            if scene.materials[m].maps.emissive.is_some() {
+                partner[k] = None;
+            }
+        }
         for (k, &i) in emissive.iter().enumerate() {
             let t = &scene.triangles[i];
             let emission = scene.materials[t.material as usize].emission;
@@ -422,6 +445,7 @@ impl Lights {
                 normal: t.normal.into(),
                 emission: emission.into(),
                 scale: scene.primitive_scale(i),
+                prim: f32::from_bits(i as u32),
                 ..Emitter::NONE
             };
             let mut area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
@@ -471,6 +495,7 @@ impl Lights {
                 emission: emission.into(),
                 radius: sphere.radius,
                 scale: scene.primitive_scale(prim as usize),
+                prim: f32::from_bits(prim),
                 ..Emitter::NONE
             });
             shapes.push(([Some(prim), None], power, area));
@@ -551,6 +576,7 @@ impl Lights {
                 pdf_area: 0.0,
                 pdf_solid_angle: self.environment_probability * s.pdf,
                 scale: 0.0,
+                prim: NO_PRIM_BITS,
             },
             None => LightPoint::on_by_area(&Emitter::NONE, u),
         }
@@ -589,6 +615,7 @@ impl Lights {
             pdf_area: lane(&|p| p.pdf_area),
             pdf_solid_angle: lane(&|p| p.pdf_solid_angle),
             scale: lane(&|p| p.scale),
+            prim: lane(&|p| p.prim),
         }
     }
 

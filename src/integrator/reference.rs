@@ -227,7 +227,7 @@ impl ReferenceTracer {
                 hit.t,
                 cos_light,
             );
-            material.emission * w
+            Vec3::from(self.tables.emission_at(s.material, s.uv)) * w
         } else {
             Vec3::ZERO
         };
@@ -250,7 +250,14 @@ impl ReferenceTracer {
             est.skip_light_numbers(sampler, path);
         } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);
-            if let Some(light) = self.lights.sample(V3::from(p), u) {
+            if let Some(mut light) = self.lights.sample(V3::from(p), u) {
+                if self.tables.has_emissive_maps()
+                    && let Some(e) = self
+                        .tables
+                        .light_emission(light.prim.to_bits(), light.point)
+                {
+                    light.emission = V3::new(e[0], e[1], e[2]);
+                }
                 let vertex = (s.p, s.n, s.ns, V3::from(-d));
                 let (valid, shadow) = connect_shaded(&light, s.err, vertex, &surface);
                 if valid {

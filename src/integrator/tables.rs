@@ -90,6 +90,11 @@ pub struct Tables {
     /// Whether some material is not [`Coverage::Opaque`]: hits are then
     /// tested for cut-outs ([`Tables::passes`]).
     cutouts: bool,
+    /// Whether some material's emission is textured
+    /// ([`Maps::emissive`](crate::scene::material::Maps::emissive)): its
+    /// radiance is looked up per hit and per light sample
+    /// ([`Tables::emission_at`]).
+    emissive_maps: bool,
 }
 
 impl Tables {
@@ -168,6 +173,7 @@ impl Tables {
                 .collect(),
             textures: scene.texturing.textures.clone(),
             cutouts: (scene.materials.iter()).any(|m| m.coverage != Coverage::Opaque),
+            emissive_maps: (scene.materials.iter()).any(|m| m.maps.emissive.is_some()),
         }
     }
 
@@ -383,6 +389,49 @@ impl Tables {
                 _ => f32x8::ZERO,
             },
         }
+    }
+
+    /// Whether some material's emission is textured: emitted radiance is
+    /// then [`emission_at`](Self::emission_at) the point, not the
+    /// material's constant [`emission`](Self::emission).
+    #[inline(always)]
+    pub fn has_emissive_maps(&self) -> bool {
+        self.emissive_maps
+    }
+
+    /// The radiance material `material` emits (towards its front) at a
+    /// point of texture coordinates `uv`: where its emission is textured,
+    /// its [`emissive_factor`](crate::scene::material::Maps::emissive_factor)
+    /// × the texture's RGB there (sRGB-decoded at load, after
+    /// `KHR_texture_transform`); else its constant
+    /// [`emission`](Self::emission), bit for bit. The one lookup both
+    /// engines make, for a hit a ray finds and for a point light sampling
+    /// picks ([`light_emission`](Self::light_emission)), so both weigh
+    /// the same radiance.
+    #[inline]
+    pub fn emission_at(&self, material: u32, uv: [[f32; 2]; 2]) -> [f32; 3] {
+        let m = &self.materials[material as usize];
+        match &m.maps.emissive {
+            Some(t) => {
+                let at = t.transform.apply(uv[(t.tex_coord as usize).min(1)]);
+                let c = self.textures[t.texture as usize].sample(t.sampler, at[0], at[1]);
+                let f = m.maps.emissive_factor;
+                [f.x * c[0], f.y * c[1], f.z * c[2]]
+            }
+            None => self.emission[material as usize],
+        }
+    }
+
+    /// The radiance emitted at the point `p` of primitive `prim` (a
+    /// point light sampling picked on an emitter): [`emission_at`](Self::emission_at)
+    /// its texture coordinates ([`texcoords`](Self::texcoords), as a hit
+    /// there has them). `None` where `prim` is no primitive (a point of
+    /// the environment) or its emission is not textured.
+    #[inline]
+    pub fn light_emission(&self, prim: u32, p: V3<f32>) -> Option<[f32; 3]> {
+        let material = *self.material_of.get(prim as usize)?;
+        self.materials[material as usize].maps.emissive.as_ref()?;
+        Some(self.emission_at(material, self.texcoords(prim as usize, p)))
     }
 
     /// Whether some surface may let rays through ([`Tables::passes`]).

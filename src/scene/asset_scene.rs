@@ -7,13 +7,14 @@
 //! [`Model::MetallicRoughness`] material (glTF's Appendix B, in both
 //! engines) of its base colour, metalness and roughness factors, with its
 //! base colour and metallic-roughness textures as [`Maps`] and the
-//! vertex colours `COLOR_0` (looked up per hit), and its `alphaMode` as
-//! the material's [`Coverage`] (cut-outs in both engines). Not yet evaluated per
-//! hit: emissive textures (they count as their mean colour), normal
-//! textures and
-//! `KHR_materials_transmission`, which, at `transmission ≥ ½`, renders
-//! as [`Model::Glass`] of the material's index (the base colour texture
-//! as its mean).
+//! vertex colours `COLOR_0` (looked up per hit), its `alphaMode` as
+//! the material's [`Coverage`] (cut-outs in both engines), and its
+//! emissive texture as [`Maps::emissive`] (emission looked up per hit and
+//! per light sample; the material's constant emission is the factor ×
+//! the texture's mean, what light sampling picks emitters by). Not yet
+//! evaluated per hit: normal textures and `KHR_materials_transmission`,
+//! which, at `transmission ≥ ½`, renders as [`Model::Glass`] of the
+//! material's index (the base colour texture as its mean).
 //!
 //! **Defaults.** Without a camera in the file: one looking at the centre
 //! of the bounds from the direction [`DEFAULT_VIEW`] (front, right, above;
@@ -104,6 +105,16 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
     }
     let base = base.clamp(Vec3::ZERO, Vec3::ONE);
     let mut out = Material::diffuse(&m.name, base, emission.max(Vec3::ZERO));
+    let scene_ref = |t: TextureRef| TextureRef {
+        texture: first_texture + t.texture,
+        ..t
+    };
+    if let Some(t) = m.emissive_texture
+        && out.is_emissive()
+    {
+        out.maps.emissive = Some(scene_ref(t));
+        out.maps.emissive_factor = Vec3::from(m.emissive).max(Vec3::ZERO);
+    }
     if m.transmission >= 0.5 && m.ior > 0.0 {
         out.model = Model::Glass;
         out.ior = m.ior;
@@ -112,16 +123,13 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
             out.transmittance *= texture_mean(asset, t.texture);
         }
     } else {
-        let scene_ref = |t: TextureRef| TextureRef {
-            texture: first_texture + t.texture,
-            ..t
-        };
         out.model = Model::MetallicRoughness;
         out.metallic = m.metallic.clamp(0.0, 1.0);
         out.roughness = m.roughness.clamp(0.0, 1.0);
         out.maps = Maps {
             base_colour: m.base_colour_texture.map(scene_ref),
             metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
+            ..out.maps
         };
         out.opacity = m.base_colour[3].clamp(0.0, 1.0);
         out.coverage = match m.alpha_mode {

@@ -102,10 +102,19 @@ pub struct Maps {
     /// [`Model::MetallicRoughness`]: B multiplies
     /// [`Material::metallic`], G [`Material::roughness`] (linear).
     pub metallic_roughness: Option<TextureRef>,
+    /// Emitted radiance: [`emissive_factor`](Self::emissive_factor) ×
+    /// this texture's RGB (sRGB-decoded) at the hit, towards the front
+    /// side; [`Material::emission`] is then the factor × the texture's
+    /// mean (what light sampling picks emitters by).
+    pub emissive: Option<TextureRef>,
+    /// The factor an [`emissive`](Self::emissive) texture multiplies
+    /// (glTF's `emissiveFactor` × `KHR_materials_emissive_strength`).
+    pub emissive_factor: Vec3,
 }
 
 impl Maps {
-    /// Whether no parameter is textured.
+    /// Whether no scattering parameter is textured (base colour,
+    /// metallic-roughness); emission is [`Maps::emissive`]'s business.
     pub fn is_empty(&self) -> bool {
         self.base_colour.is_none() && self.metallic_roughness.is_none()
     }
@@ -200,13 +209,20 @@ impl Material {
             Coverage::Blend => words.push(Vec3::new(6.0, 0.0, self.opacity)),
         }
         // (Constant materials hash as before textures existed.)
-        for (k, t) in [&self.maps.base_colour, &self.maps.metallic_roughness]
-            .into_iter()
-            .enumerate()
+        for (k, t) in [
+            &self.maps.base_colour,
+            &self.maps.metallic_roughness,
+            &self.maps.emissive,
+        ]
+        .into_iter()
+        .enumerate()
         {
             if let Some(t) = t {
                 words.extend(t.hash_words(k as f32));
             }
+        }
+        if self.maps.emissive.is_some() {
+            words.push(self.maps.emissive_factor);
         }
         words
     }

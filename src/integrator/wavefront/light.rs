@@ -5,11 +5,14 @@
 use super::Ctx;
 use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
+use crate::integrator::lights::LightPoint;
 use crate::integrator::nee::{connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
+use crate::integrator::tables::Tables;
 use crate::math::V3;
 use crate::scene::Model;
 use std::ops::Range;
+use wide::f32x8;
 
 /// Sample an emitter from every path's vertex at a non-delta surface
 /// (three numbers per path; paths at delta surfaces skip theirs), model by
@@ -62,7 +65,10 @@ fn sample_lights_8<S: Sampler>(
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
     let s = tables.surface_8(&tris, (o, d), t);
-    let light = lights.sample_8(s.p, [u0, u1], lanes);
+    let mut light = lights.sample_8(s.p, [u0, u1], lanes);
+    if tables.has_emissive_maps() {
+        textured_emission_8(tables, &mut light, lanes);
+    }
     let surface = tables.surfaces_at(model, &tris, &s);
     let (valid, ray) = if tables.has_smooth() {
         connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), &surface)
@@ -74,4 +80,31 @@ fn sample_lights_8<S: Sampler>(
     if valid != 0 {
         shadows.push_8(i as u32, valid, &ray);
     }
+}
+
+/// Where the points `light` (the first `lanes` lanes) lie on emitters
+/// whose emission is textured, their radiance looked up there, lane by
+/// lane, as the reference tracer does ([`Tables::light_emission`]).
+#[inline(never)]
+fn textured_emission_8(tables: &Tables, light: &mut LightPoint<f32x8>, lanes: usize) {
+    let prim = light.prim.to_array();
+    let (px, py, pz) = (
+        light.point.x.to_array(),
+        light.point.y.to_array(),
+        light.point.z.to_array(),
+    );
+    let mut e = [
+        light.emission.x.to_array(),
+        light.emission.y.to_array(),
+        light.emission.z.to_array(),
+    ];
+    for l in 0..lanes {
+        let p = V3::new(px[l], py[l], pz[l]);
+        if let Some(c) = tables.light_emission(prim[l].to_bits(), p) {
+            for k in 0..3 {
+                e[k][l] = c[k];
+            }
+        }
+    }
+    light.emission = V3::new(f32x8::from(e[0]), f32x8::from(e[1]), f32x8::from(e[2]));
 }

@@ -25,7 +25,7 @@ pub fn shade<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
     for i in rows_where(hit, |&h| tables.emits(h)) {
         let (o, d) = (V3::new(ox[i], oy[i], oz[i]), V3::new(dx[i], dy[i], dz[i]));
         let s = tables.surface(hit[i] as usize, (o, d), t[i]);
-        let e = tables.emission[s.material as usize];
+        let e = tables.emission_at(s.material, s.uv);
         if s.front {
             let cos_light = -glam::Vec3::from(s.ng).dot(glam::Vec3::from(d));
             let w = emission_weight(estimator, lights, (pdf[i], o), hit[i], t[i], cos_light);
