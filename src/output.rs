@@ -10,6 +10,17 @@
 //! `STEM.variance.pfm` for `STEM.png`), PFM because it keeps the floats
 //! exactly (a PNG would clamp normals, depths and variances). A PFM's
 //! depth repeats its one value in all three channels.
+//!
+//! Three AOVs are written otherwise ([`aov_path`], [`aov_layer`]):
+//! **alpha** is the image's own alpha — a PNG becomes RGBA (8-bit, the
+//! colour *not* premultiplied, as PNG defines it: the mean over the
+//! samples that hit, `rgb / alpha`), an EXR gets an `A` channel beside
+//! `R`, `G`, `B` (which stay premultiplied, as EXR defines them: the
+//! misses add 0 to the mean), a PFM (which has no alpha) gets
+//! `STEM.alpha.pfm`; **zdepth** is `zdepth.Z` in an EXR, else
+//! `STEM.zdepth.pfm`; **object_id** is `object_id.id`, a 32-bit unsigned
+//! integer channel, in an EXR, else `STEM.object_id.png`, a 16-bit
+//! grey PNG holding the ids (refused for ids above 65535).
 
 pub mod view;
 
@@ -154,27 +165,109 @@ pub const NORMAL_LAYER: (&str, &[&str]) = ("normal", &["X", "Y", "Z"]);
 pub const DEPTH_LAYER: (&str, &[&str]) = ("depth", &["Z"]);
 /// The variance layer's name and channels in wavetrace's EXR images.
 pub const VARIANCE_LAYER: (&str, &[&str]) = ("variance", &["R", "G", "B"]);
+/// The alpha's channel in wavetrace's EXR images: `A`, no layer name.
+pub const ALPHA_LAYER: (&str, &[&str]) = ("", &["A"]);
+/// The zdepth layer's name and channel in wavetrace's EXR images.
+pub const ZDEPTH_LAYER: (&str, &[&str]) = ("zdepth", &["Z"]);
+/// The object_id layer's name and channel in wavetrace's EXR images (a
+/// `u32` channel).
+pub const OBJECT_ID_LAYER: (&str, &[&str]) = ("object_id", &["id"]);
 
-/// The EXR layer name and channels of an AOV.
+/// The EXR layer name and channels of an AOV (an empty name: channels of
+/// their own, the alpha's `A`).
 pub fn aov_layer(aov: Aov) -> (&'static str, &'static [&'static str]) {
     match aov {
         Aov::Albedo => ALBEDO_LAYER,
         Aov::Normal => NORMAL_LAYER,
         Aov::Depth => DEPTH_LAYER,
         Aov::Variance => VARIANCE_LAYER,
+        Aov::Alpha => ALPHA_LAYER,
+        Aov::ZDepth => ZDEPTH_LAYER,
+        Aov::ObjectId => OBJECT_ID_LAYER,
     }
 }
 
 /// The file an AOV of the PNG or PFM image `image` goes to: `STEM.NAME.pfm`
-/// beside it (`out.png` → `out.albedo.pfm`). `None` for an EXR image
-/// (its AOVs are layers) or an accumulation file (it holds their sums).
+/// beside it (`out.png` → `out.albedo.pfm`), but `STEM.object_id.png`
+/// beside a PNG. `None` for an EXR image (its AOVs are layers), an
+/// accumulation file (it holds their sums), and the alpha of a PNG (its
+/// own alpha channel).
 pub fn aov_path(image: &Path, aov: Aov) -> Option<PathBuf> {
-    match ImageFormat::from_path(image) {
-        Ok(ImageFormat::Png | ImageFormat::Pfm) => {
+    match (ImageFormat::from_path(image), aov) {
+        (Ok(ImageFormat::Png), Aov::Alpha) => None,
+        (Ok(ImageFormat::Png), Aov::ObjectId) => {
+            Some(image.with_extension(format!("{}.png", aov.name())))
+        }
+        (Ok(ImageFormat::Png | ImageFormat::Pfm), _) => {
             Some(image.with_extension(format!("{}.pfm", aov.name())))
         }
         _ => None,
     }
+}
+
+/// Write an object_id image as a 16-bit grey PNG of the ids, atomically;
+/// refused, naming the file, when an id is above 65535.
+pub fn write_id_png(path: &Path, width: u32, height: u32, ids: &[[f32; 3]]) -> Result<()> {
+    if let Some(p) = ids.iter().find(|p| p[0] > 65535.0) {
+        return Err(Error::Settings(format!(
+            "{}: object id {} does not fit a 16-bit PNG: write an .exr image",
+            path.display(),
+            p[0]
+        )));
+    }
+    let bytes: Vec<u8> = ids
+        .iter()
+        .flat_map(|p| (p[0] as u16).to_ne_bytes()) // (the image crate writes them big-endian)
+        .collect();
+    Ok(write_atomic(path, |w| {
+        image::write_buffer_with_format(
+            w,
+            &bytes,
+            width,
+            height,
+            image::ExtendedColorType::L16,
+            image::ImageFormat::Png,
+        )
+        .map_err(std::io::Error::other)
+    })?)
+}
+
+/// Write an RGBA PNG, atomically: the colour `rgb` (premultiplied, as the
+/// film holds it) divided by `alpha` (straight colour, as PNG defines it;
+/// 0 where alpha is 0) through `view`, and the alpha as 8 bits.
+pub fn write_rgba_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    rgb: &[[f32; 3]],
+    alpha: &[[f32; 3]],
+    view: ViewTransform,
+) -> Result<()> {
+    let straight: Vec<[f32; 3]> = (rgb.iter().zip(alpha))
+        .map(|(c, a)| {
+            if a[0] > 0.0 {
+                c.map(|x| x / a[0])
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    let colour = view.bytes(&straight);
+    let mut bytes = Vec::with_capacity(colour.len() / 3 * 4);
+    for (c, a) in colour.chunks_exact(3).zip(alpha) {
+        bytes.extend_from_slice(c);
+        bytes.push((a[0].clamp(0.0, 1.0) * 255.0).round() as u8);
+    }
+    Ok(write_atomic(path, |w| {
+        image::write_buffer_with_format(
+            w,
+            &bytes,
+            width,
+            height,
+            image::ExtendedColorType::Rgba8,
+            image::ImageFormat::Png,
+        )
+        .map_err(std::io::Error::other)
+    })?)
 }
 
 /// Write a linear RGB image with AOV images `aovs` (each of the image's
@@ -205,10 +298,22 @@ pub fn write_image_with_aovs(
             .collect();
         return write_exr_layers(path, width, height, rgb, &layers);
     }
-    write_image_viewed(path, width, height, rgb, view)?;
+    let alpha = aovs.iter().find(|(a, _)| *a == Aov::Alpha);
+    match alpha {
+        Some((_, alpha)) if ImageFormat::from_path(path)? == ImageFormat::Png => {
+            write_rgba_png(path, (width, height), rgb, alpha, view)?;
+        }
+        _ => write_image_viewed(path, width, height, rgb, view)?,
+    }
     for (aov, pixels) in aovs {
-        let side = aov_path(path, *aov).expect("a PNG or PFM image");
-        write_image(&side, width, height, pixels)?;
+        let Some(side) = aov_path(path, *aov) else {
+            continue; // the PNG's alpha
+        };
+        if ImageFormat::from_path(&side)? == ImageFormat::Png {
+            write_id_png(&side, width, height, pixels)?;
+        } else {
+            write_image(&side, width, height, pixels)?;
+        }
     }
     Ok(())
 }
@@ -237,8 +342,17 @@ pub fn write_exr_layers(
         assert_eq!(layer.pixels.len(), n);
         assert!((1..=3).contains(&layer.channels.len()));
         for (c, channel) in layer.channels.iter().enumerate() {
-            let name = format!("{}.{channel}", layer.name);
-            list.push(AnyChannel::new(name.as_str(), plane(layer.pixels, c)));
+            // A layer without a name: channels of their own (alpha's `A`).
+            let name = match layer.name {
+                "" => channel.to_string(),
+                layer => format!("{layer}.{channel}"),
+            };
+            let samples = if layer.name == OBJECT_ID_LAYER.0 {
+                FlatSamples::U32(layer.pixels.iter().map(|p| p[c] as u32).collect())
+            } else {
+                plane(layer.pixels, c)
+            };
+            list.push(AnyChannel::new(name.as_str(), samples));
         }
     }
     let encoding = exr_encoding();
@@ -302,7 +416,10 @@ pub fn read_exr_layer(path: &Path, name: &str, channels: &[&str]) -> Result<Opti
     let n = image.layer_data.size.0 * image.layer_data.size.1;
     let mut out = vec![[0.0f32; 3]; n];
     for (c, channel) in channels.iter().enumerate() {
-        let full = format!("{name}.{channel}");
+        let full = match name {
+            "" => channel.to_string(),
+            name => format!("{name}.{channel}"),
+        };
         let Some(found) = list.iter().find(|ch| ch.name.to_string() == full) else {
             return Ok(None);
         };

@@ -199,7 +199,10 @@ impl RenderSettings {
             rr_depth: scene.options.rr_depth,
             simd: SimdWidth::detect(),
             memory_limit: None,
-            aovs: scene.options.aov.unwrap_or_default(),
+            aovs: match scene.options.aov.unwrap_or_default() {
+                a if scene.has_transparent_background() => a.with(crate::scene::Aov::Alpha),
+                a => a,
+            },
         }
     }
 

@@ -1048,3 +1048,115 @@ fn the_checker_scene_has_the_camera_its_file_gives() {
     assert!((c.focal_length_px - want.focal_length_px).abs() < 1e-2);
     assert_eq!((c.width, c.height), (480, 480));
 }
+
+// ---------------------------------------------------------------------------
+// Alpha and object ids through cut-outs
+
+/// The MASK leaf of [`leaf`] alone (node 0), with a small red tile (node
+/// 1, x in -0.8..-0.2, z in -0.3..0.3, y = 0) under its cut-out half,
+/// seen from straight above, against nothing.
+fn leaf_over_a_tile() -> Vec<u8> {
+    let mut g = Gltf::default();
+    let tex = g.texture(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255], 9728);
+    let leaf = g.material(Mat {
+        base: [1.0, 1.0, 1.0, 1.0],
+        base_texture: Some((tex, "")),
+        extra: MASK,
+        ..Mat::default()
+    });
+    let red = g.material(Mat {
+        base: [0.8, 0.1, 0.1, 1.0],
+        ..Mat::default()
+    });
+    let quad = |g: &mut Gltf, s: f32, y: f32, m: usize| {
+        g.quad(
+            [
+                Vec3::new(-s, y, -s),
+                Vec3::new(-s, y, s),
+                Vec3::new(s, y, s),
+                Vec3::new(s, y, -s),
+            ],
+            [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+            m,
+        )
+    };
+    let mesh = quad(&mut g, 1.0, 0.5, leaf);
+    g.node(mesh, Vec3::ZERO, Quat::IDENTITY);
+    let mesh = quad(&mut g, 0.3, 0.0, red);
+    g.node(mesh, Vec3::new(-0.5, 0.0, 0.0), Quat::IDENTITY);
+    let down = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    g.camera(Vec3::new(0.0, 3.0, 0.0), down, 60f32.to_radians(), 1.0);
+    g.glb()
+}
+
+/// What the camera ray `(o, d)` hits in [`leaf_over_a_tile`], by this
+/// test's own `f64` arithmetic: the object id (1 the leaf's opaque half,
+/// 2 the tile, 0 nothing: the leaf's cut-out half lets rays through), and
+/// whether that is certain (no edge within 1e-5).
+fn leaf_hit(o: glam::DVec3, d: glam::DVec3) -> (u32, bool) {
+    let at = |y: f64| o + (y - o.y) / d.y * d;
+    let p = at(0.5);
+    let near = |a: f64, b: f64| (a - b).abs() < 1e-5;
+    let mut certain = ![p.x, p.z].iter().any(|&c| near(c.abs(), 1.0)) && !near(p.x, 0.0);
+    if p.x > 0.0 && p.x < 1.0 && p.z.abs() < 1.0 {
+        return (1, certain);
+    }
+    let q = at(0.0);
+    certain &= !(near(q.x, -0.8) || near(q.x, -0.2) || near(q.z.abs(), 0.3));
+    let tile = q.x > -0.8 && q.x < -0.2 && q.z.abs() < 0.3;
+    (if tile { 2 } else { 0 }, certain)
+}
+
+/// With cut-outs, a camera ray that passes through the leaf's transparent
+/// half counts as a miss for the alpha (unless it hits the tile below),
+/// and hits are told apart by glTF node: the alpha's hit counts and the
+/// per-object counts are exactly those of a brute-force count of the very
+/// camera rays, in both engines; the legend names the nodes.
+#[test]
+fn alpha_and_object_ids_count_cut_outs_as_misses() {
+    use wavetrace::integrator::sampler::{Sampler, Sobol};
+    use wavetrace::scene::{Aov, AovSet, SamplerKind};
+    let dir = TempDir::new("alpha-cutout");
+    let scene = scene_of(&dir, "leaf.glb", &leaf_over_a_tile());
+    assert_eq!(scene.objects.names, ["node 0", "node 1"]);
+    let (n, spp, seed) = (32u32, 8u32, 11u64);
+    let camera = scene.camera.for_resolution(n, n);
+    let sampler = Sobol::new(seed);
+    let mut want = vec![[0u64; 3]; (n * n) as usize];
+    let mut certain = vec![true; (n * n) as usize];
+    for y in 0..n {
+        for x in 0..n {
+            let i = (y * n + x) as usize;
+            for s in 0..spp {
+                let mut path = sampler.start(camera.pixel_index(x, y), s);
+                let (o, d) = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
+                let (id, sure) = leaf_hit(o.as_dvec3(), d.as_dvec3());
+                want[i][id as usize] += 1;
+                certain[i] &= sure;
+            }
+        }
+    }
+    assert!(certain.iter().filter(|c| !**c).count() <= 2);
+    // Not vacuous: rays through the cut-out, onto the tile, onto the leaf.
+    let through = want.iter().filter(|w| w[0] == spp as u64).count();
+    assert!(through > 50 && want.iter().any(|w| w[1] == spp as u64));
+    assert!(want.iter().any(|w| w[2] == spp as u64));
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        let mut s = settings(&scene, n, n, spp);
+        (s.engine, s.seed, s.sampler) = (engine, seed, SamplerKind::Sobol);
+        s.aovs = AovSet::of(&[Aov::Alpha, Aov::ObjectId]);
+        let film = render(&scene, &s);
+        for i in 0..(n * n) as usize {
+            if !certain[i] {
+                continue;
+            }
+            let w = want[i];
+            assert_eq!(film.aov.alpha[i], w[1] + w[2], "{engine:?} pixel {i}");
+            let counts: Vec<(u32, u64)> = [(1, w[1]), (2, w[2])]
+                .into_iter()
+                .filter(|c| c.1 > 0)
+                .collect();
+            assert_eq!(film.aov.objects[i], counts, "{engine:?} pixel {i}");
+        }
+    }
+}

@@ -47,7 +47,7 @@ pub fn run(args: MergeArgs) -> Result<()> {
     }
     // The AOV files beside a PNG or PFM --out: every one the parts might
     // hold (which they hold is known only once they are read).
-    let aov_files: Vec<PathBuf> = Aov::ALL
+    let aov_files: Vec<PathBuf> = Aov::EVERY
         .iter()
         .filter_map(|&a| aov_path(&args.out, a))
         .collect();

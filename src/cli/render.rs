@@ -49,6 +49,10 @@ pub struct RenderArgs {
     /// Also accumulate these AOVs: albedo, normal, depth, variance (docs/aov.md).
     #[arg(long, value_name = "LIST", value_parser = parse_aovs, help_heading = "Output")]
     pub aov: Option<AovSet>,
+    /// A transparent background: rays from the camera that leave the scene
+    /// see black, and the image gets the coverage as alpha (docs/aov.md).
+    #[arg(long, help_heading = "Output")]
+    pub transparent: bool,
     /// Denoise the image with Intel Open Image Denoise (`pip install pyoidn`).
     #[arg(long, help_heading = "Output")]
     pub denoise: bool,
@@ -256,6 +260,9 @@ fn plan(args: RenderArgs) -> Result<Job> {
         None => Scene::cornell(),
     };
     args.light.apply(&mut scene)?;
+    if args.transparent {
+        scene.make_transparent();
+    }
     let profile = match &args.profile {
         Some(name) => Profile::load(name)?,
         None => Profile::default(),
@@ -315,6 +322,9 @@ fn plan(args: RenderArgs) -> Result<Job> {
     settings.aovs = args.aov.or(profile_aovs).unwrap_or(settings.aovs);
     if args.denoise {
         settings.aovs = settings.aovs.union(AovSet::DENOISE);
+    }
+    if args.transparent || scene.has_transparent_background() {
+        settings.aovs = settings.aovs.with(Aov::Alpha);
     }
     settings.batch_size = args.batch_size.unwrap_or(settings.batch_size);
     settings.simd = args.simd.unwrap_or(settings.simd);

@@ -14,6 +14,9 @@
 //! | normal | XYZ, clamped to [-1, 1] | `i128` ×3 | sum / n |
 //! | depth | distance `t`, when the camera ray hit (`0 ≤ t < 2³¹`) | `u128` + hit count `u64` | sum / hits, `+inf` for no hit |
 //! | variance | the radiance sample's square, per channel | `u128` ×3 | s² (below) |
+//! | alpha | 1 when the camera ray hit something | hit count `u64` | hits / n |
+//! | zdepth | `t · (d · forward)`, when the camera ray hit | `u128` + hit count `u64` | sum / hits, `+inf` for no hit |
+//! | object_id | the id of the object the camera ray hit (0: none) | a count per id seen ([`ObjectCounts`]) | the id of most samples, misses counting for 0; ties to the smallest |
 //!
 //! `n` is the film's samples per pixel. The sum of squares adds, per valid
 //! radiance sample, `round(q² / 2³²)` where `q` is the integer the
@@ -34,6 +37,10 @@ pub type AlbedoSum = [u128; 3];
 pub type NormalSum = [i128; 3];
 /// Sums of one pixel's squared radiance samples, R, G, B.
 pub type SquareSum = [u128; 3];
+/// How many of one pixel's camera rays hit each object: `(id, count)`
+/// pairs, ids ascending, each id at most once, counts at least 1 (ids
+/// are never 0; the misses are the samples not counted).
+pub type ObjectCounts = Vec<(u32, u64)>;
 
 /// Sum of one pixel's camera-ray hit distances, and how many hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -48,7 +55,10 @@ pub struct DepthSum {
 pub fn bytes_per_pixel(aov: Aov) -> usize {
     match aov {
         Aov::Albedo | Aov::Normal | Aov::Variance => 48,
-        Aov::Depth => 24,
+        Aov::Depth | Aov::ZDepth => 24,
+        Aov::Alpha => 8,
+        // Variable in files (a count, then 12 bytes per id); the least here.
+        Aov::ObjectId => 4,
     }
 }
 
@@ -60,8 +70,14 @@ pub struct AovSample {
     pub albedo: [f32; 3],
     /// The shading normal there; zero if there is none.
     pub normal: [f32; 3],
-    /// The camera ray's hit distance; `+inf` if it hit nothing.
+    /// The camera ray's hit distance; `+inf` if it hit nothing (what the
+    /// alpha counts: a sample hit when this is below `+inf`).
     pub depth: f32,
+    /// The camera ray's hit distance along the camera's forward axis,
+    /// `depth · (d · forward)`; `+inf` if it hit nothing.
+    pub zdepth: f32,
+    /// The id of the object the camera ray hit; 0 if it hit nothing.
+    pub object: u32,
 }
 
 impl AovSample {
@@ -70,6 +86,8 @@ impl AovSample {
         albedo: [0.0; 3],
         normal: [0.0; 3],
         depth: f32::INFINITY,
+        zdepth: f32::INFINITY,
+        object: 0,
     };
 }
 
@@ -93,6 +111,12 @@ pub struct AovSums {
     pub depth: Vec<DepthSum>,
     /// Sums of squared radiance (empty unless `set` has [`Aov::Variance`]).
     pub squares: Vec<SquareSum>,
+    /// Camera-ray hit counts (empty unless `set` has [`Aov::Alpha`]).
+    pub alpha: Vec<u64>,
+    /// Forward-axis depth sums (empty unless `set` has [`Aov::ZDepth`]).
+    pub zdepth: Vec<DepthSum>,
+    /// Per-object hit counts (empty unless `set` has [`Aov::ObjectId`]).
+    pub objects: Vec<ObjectCounts>,
 }
 
 impl AovSums {
@@ -105,6 +129,9 @@ impl AovSums {
             normal: vec![[0; 3]; n(Aov::Normal)],
             depth: vec![DepthSum::default(); n(Aov::Depth)],
             squares: vec![[0; 3]; n(Aov::Variance)],
+            alpha: vec![0; n(Aov::Alpha)],
+            zdepth: vec![DepthSum::default(); n(Aov::ZDepth)],
+            objects: vec![Vec::new(); n(Aov::ObjectId)],
         }
     }
 
@@ -130,12 +157,22 @@ impl AovSums {
                 *x += y;
             }
         }
-        for (a, b) in self.depth.iter_mut().zip(&other.depth) {
+        for (a, b) in (self.depth.iter_mut().zip(&other.depth))
+            .chain(self.zdepth.iter_mut().zip(&other.zdepth))
+        {
             a.sum += b.sum;
             a.hits += b.hits;
         }
         for (a, b) in self.squares.iter_mut().zip(&other.squares) {
             add3(a, b);
+        }
+        for (a, b) in self.alpha.iter_mut().zip(&other.alpha) {
+            *a += b;
+        }
+        for (a, b) in self.objects.iter_mut().zip(&other.objects) {
+            for &(id, count) in b {
+                add_object(a, id, count);
+            }
         }
     }
 
@@ -148,19 +185,26 @@ impl AovSums {
         let mut normal = self.normal.chunks_mut(tile);
         let mut depth = self.depth.chunks_mut(tile);
         let mut squares = self.squares.chunks_mut(tile);
+        let mut alpha = self.alpha.chunks_mut(tile);
+        let mut zdepth = self.zdepth.chunks_mut(tile);
+        let mut objects = self.objects.chunks_mut(tile);
         (0..count)
             .map(|_| AovTile {
                 albedo: albedo.next().unwrap_or_default(),
                 normal: normal.next().unwrap_or_default(),
                 depth: depth.next().unwrap_or_default(),
                 squares: squares.next().unwrap_or_default(),
+                alpha: alpha.next().unwrap_or_default(),
+                zdepth: zdepth.next().unwrap_or_default(),
+                objects: objects.next().unwrap_or_default(),
             })
             .collect()
     }
 
-    /// The AOVs' images (row-major, three channels each; depth repeats its
-    /// one value), in canonical order, for a film of `samples` samples per
-    /// pixel whose radiance sums are `radiance`.
+    /// The AOVs' images (row-major, three channels each; depth, alpha,
+    /// zdepth and object_id repeat their one value), in canonical order,
+    /// for a film of `samples` samples per pixel whose radiance sums are
+    /// `radiance`. An object id is exact as an `f32` up to 2²⁴.
     pub fn images(&self, samples: u64, radiance: &[PixelSum]) -> Vec<(Aov, Vec<[f32; 3]>)> {
         let n = samples as f64;
         let mean = (n.max(1.0)) * FIXED_POINT_SCALE;
@@ -174,15 +218,13 @@ impl AovSums {
                     Aov::Normal => (self.normal.iter())
                         .map(|s| s.map(|c| (c as f64 / mean) as f32))
                         .collect(),
-                    Aov::Depth => (self.depth.iter())
-                        .map(|d| {
-                            let z = if d.hits == 0 {
-                                f32::INFINITY
-                            } else {
-                                (d.sum as f64 / (d.hits as f64 * FIXED_POINT_SCALE)) as f32
-                            };
-                            [z; 3]
-                        })
+                    Aov::Depth => self.depth.iter().map(|d| [d.mean(); 3]).collect(),
+                    Aov::ZDepth => self.zdepth.iter().map(|d| [d.mean(); 3]).collect(),
+                    Aov::Alpha => (self.alpha.iter())
+                        .map(|&h| [(h as f64 / n.max(1.0)) as f32; 3])
+                        .collect(),
+                    Aov::ObjectId => (self.objects.iter())
+                        .map(|c| [majority(samples, c) as f32; 3])
                         .collect(),
                     Aov::Variance => (self.squares.iter().zip(radiance))
                         .map(|(sq, sum)| std::array::from_fn(|c| variance(n, sum[c], sq[c])))
@@ -191,6 +233,42 @@ impl AovSums {
                 (aov, image)
             })
             .collect()
+    }
+}
+
+/// The id of the object most of a pixel's `samples` samples hit, from its
+/// counts: the misses (the samples not counted) vote for 0; a tie goes to
+/// the smallest id.
+pub fn majority(samples: u64, counts: &[(u32, u64)]) -> u32 {
+    let hits: u64 = counts.iter().map(|c| c.1).sum();
+    let mut best = (0, samples.saturating_sub(hits));
+    for &(id, count) in counts {
+        // Ids ascend: a later id wins only with strictly more samples.
+        if count > best.1 {
+            best = (id, count);
+        }
+    }
+    best.0
+}
+
+/// Add `count` hits of object `id` to a pixel's counts, keeping them
+/// sorted by id.
+#[inline]
+pub fn add_object(counts: &mut ObjectCounts, id: u32, count: u64) {
+    match counts.binary_search_by_key(&id, |c| c.0) {
+        Ok(k) => counts[k].1 += count,
+        Err(k) => counts.insert(k, (id, count)),
+    }
+}
+
+impl DepthSum {
+    /// The mean distance of the hits, `+inf` when there is none.
+    pub fn mean(&self) -> f32 {
+        if self.hits == 0 {
+            f32::INFINITY
+        } else {
+            (self.sum as f64 / (self.hits as f64 * FIXED_POINT_SCALE)) as f32
+        }
     }
 }
 
@@ -216,6 +294,12 @@ pub struct AovTile<'a> {
     pub depth: &'a mut [DepthSum],
     /// Sums of squared radiance, or empty.
     pub squares: &'a mut [SquareSum],
+    /// Camera-ray hit counts, or empty.
+    pub alpha: &'a mut [u64],
+    /// Forward-axis depth sums, or empty.
+    pub zdepth: &'a mut [DepthSum],
+    /// Per-object hit counts, or empty.
+    pub objects: &'a mut [ObjectCounts],
 }
 
 impl AovTile<'_> {
@@ -246,6 +330,20 @@ impl AovTile<'_> {
                 *s += square(q);
             }
         }
+        if let Some(s) = self.alpha.get_mut(i) {
+            *s += u64::from(aov.depth < f32::INFINITY);
+        }
+        if let Some(s) = self.zdepth.get_mut(i)
+            && (0.0..MAX_SAMPLE).contains(&aov.zdepth)
+        {
+            s.sum += fixed(aov.zdepth) as u128;
+            s.hits += 1;
+        }
+        if let Some(s) = self.objects.get_mut(i)
+            && aov.object != 0
+        {
+            add_object(s, aov.object, 1);
+        }
     }
 }
 
@@ -264,7 +362,8 @@ pub fn most(aov: Aov, held: u64) -> u128 {
     let held = held as u128;
     match aov {
         Aov::Albedo | Aov::Normal => held << 32,
-        Aov::Depth => held << 63,
+        Aov::Depth | Aov::ZDepth => held << 63,
         Aov::Variance => held << 94,
+        Aov::Alpha | Aov::ObjectId => held,
     }
 }

@@ -377,7 +377,7 @@ mod tests {
     /// radiance's.
     #[test]
     fn aov_sums_add_the_fixed_point_values() {
-        let mut film = Film::with_aovs(2, 1, AovSet::ALL);
+        let mut film = Film::with_aovs(2, 1, AovSet::EVERY);
         let mut tiles = film.aov.tiles_mut(1, 2);
         assert_eq!(tiles.len(), 2);
         let mut s = [0; 3];
@@ -385,6 +385,8 @@ mod tests {
             albedo: [0.5, 2.0, -1.0],
             normal: [-1.0, 0.25, 1.5],
             depth: 3.0,
+            zdepth: 2.5,
+            object: 7,
         };
         assert!(accumulate_with_aovs(
             &mut s,
@@ -412,6 +414,9 @@ mod tests {
             }
         );
         assert_eq!(a.squares[1], [9 * q, q / 4, 0]);
+        assert_eq!(a.alpha, [0, 1], "one hit, one miss");
+        assert_eq!(a.zdepth[1].sum, 5 * q / 2);
+        assert_eq!(a.objects, [vec![], vec![(7, 1)]]);
         // (2^63 - 1)^2 / 2^32 = 2^94 - 2^32 + 2^-32, rounded: no overflow.
         assert_eq!(aov::square(u64::MAX >> 1), (1 << 94) - q);
         assert_eq!(aov::square(3 << 31), 9 << 30); // 1.5^2 = 2.25, exactly

@@ -18,7 +18,12 @@
 //!   radiance sums come, for each AOV in that order, its sums for every
 //!   pixel, row-major, little-endian: albedo three `u128`, normal three
 //!   `i128`, depth a `u128` sum and a `u64` hit count, variance three `u128`
-//!   sums of squares (see [`super::aov`]).
+//!   sums of squares, alpha a `u64` hit count, zdepth a `u128` sum and a
+//!   `u64` hit count (see [`super::aov`]); object_id, the last when held,
+//!   is of variable length: for each pixel a `u32` number of ids, then
+//!   that many `u32` id and `u64` count pairs, ids ascending (none 0),
+//!   counts at least 1, summing to at most the samples held. Files of the
+//!   first four AOVs are what they were before the others existed.
 //!
 //! A file of another version (a newer wavetrace's) is refused with a
 //! message that says so.
@@ -95,6 +100,20 @@ impl Film {
         for s in &a.squares {
             for c in s {
                 bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        for h in &a.alpha {
+            bytes.extend_from_slice(&h.to_le_bytes());
+        }
+        for d in &a.zdepth {
+            bytes.extend_from_slice(&d.sum.to_le_bytes());
+            bytes.extend_from_slice(&d.hits.to_le_bytes());
+        }
+        for counts in &a.objects {
+            bytes.extend_from_slice(&(counts.len() as u32).to_le_bytes());
+            for (id, count) in counts {
+                bytes.extend_from_slice(&id.to_le_bytes());
+                bytes.extend_from_slice(&count.to_le_bytes());
             }
         }
         let check = xxhash_rust::xxh3::xxh3_128(&bytes);
@@ -207,11 +226,21 @@ impl Film {
         let expected = (header.width as u64)
             .checked_mul(header.height as u64)
             .and_then(|n| n.checked_mul(per_pixel));
-        if expected != Some(data.len() as u64) {
+        // The object ids' plane is of variable length: at least its size.
+        let variable = aovs.contains(Aov::ObjectId);
+        let fits = match expected {
+            Some(n) if variable => data.len() as u64 >= n,
+            n => n == Some(data.len() as u64),
+        };
+        if !fits {
             return Err(bad(format!(
                 "holds {} bytes of sums, expected {} for {}x{}{}",
                 data.len(),
-                expected.map_or("more than 2^64".into(), |n| n.to_string()),
+                match expected {
+                    Some(n) if variable => format!("at least {n}"),
+                    Some(n) => n.to_string(),
+                    None => "more than 2^64".into(),
+                },
                 header.width,
                 header.height,
                 if aovs.is_empty() {
@@ -255,6 +284,12 @@ impl Film {
             ..AovSums::default()
         };
         for kind in aovs.iter() {
+            if kind == Aov::ObjectId {
+                aov.objects = read_objects(rest, (pixels, w), held, &too_large)
+                    .map_err(|m| bad(m.message))?;
+                rest = &[];
+                break;
+            }
             let (plane, tail) = rest.split_at(pixels * bytes_per_pixel(kind));
             rest = tail;
             let bound = most(kind, held);
@@ -285,7 +320,8 @@ impl Film {
                         aov.normal.push(s);
                     }
                 }
-                Aov::Depth => {
+                Aov::Depth | Aov::ZDepth => {
+                    let mut col = Vec::with_capacity(pixels);
                     for (i, p) in plane.chunks_exact(24).enumerate() {
                         let d = DepthSum {
                             sum: u128_at(p, 0),
@@ -294,11 +330,27 @@ impl Film {
                         if d.hits > held || d.sum > most(kind, d.hits) {
                             return Err(too_large(&label, i));
                         }
-                        aov.depth.push(d);
+                        col.push(d);
+                    }
+                    if kind == Aov::Depth {
+                        aov.depth = col;
+                    } else {
+                        aov.zdepth = col;
                     }
                 }
+                Aov::Alpha => {
+                    for (i, p) in plane.chunks_exact(8).enumerate() {
+                        let h = u64::from_le_bytes(p.try_into().unwrap_or([0; 8]));
+                        if h > held {
+                            return Err(too_large(&label, i));
+                        }
+                        aov.alpha.push(h);
+                    }
+                }
+                Aov::ObjectId => unreachable!("read above"),
             }
         }
+        debug_assert!(rest.is_empty());
         let film = Film {
             width: header.width,
             height: header.height,
@@ -328,6 +380,62 @@ impl Film {
         };
         Ok((film, meta))
     }
+}
+
+/// Read the object_id plane (`plane`, the rest of the file's data) of
+/// `pixels` pixels of `held` samples: each pixel's id count, then its
+/// `(id, count)` pairs. Refuses ids 0 or not ascending, counts of 0, a
+/// pixel whose counts sum beyond `held`, and a plane longer or shorter
+/// than its pixels. Nothing is allocated beyond what the plane holds.
+fn read_objects(
+    mut plane: &[u8],
+    (pixels, w): (usize, usize),
+    held: u64,
+    too_large: &dyn Fn(&str, usize) -> WtaccError,
+) -> Result<Vec<super::aov::ObjectCounts>, WtaccError> {
+    let short = || WtaccError {
+        path: PathBuf::new(),
+        message: "the object_id sums are truncated".into(),
+    };
+    let mut out = Vec::with_capacity(pixels.min(plane.len() / 4));
+    for i in 0..pixels {
+        let (n, tail) = plane.split_first_chunk::<4>().ok_or_else(short)?;
+        let n = u32::from_le_bytes(*n) as usize;
+        let bytes = n.checked_mul(12).filter(|&b| b <= tail.len());
+        let bytes = bytes.ok_or_else(short)?;
+        let (pairs, tail) = tail.split_at(bytes);
+        plane = tail;
+        let mut counts = Vec::with_capacity(n);
+        let mut total = 0u64;
+        for p in pairs.chunks_exact(12) {
+            let id = u32::from_le_bytes(p[..4].try_into().unwrap_or_default());
+            let count = u64::from_le_bytes(p[4..].try_into().unwrap_or_default());
+            let ascending = counts.last().is_none_or(|&(last, _)| id > last);
+            if id == 0 || count == 0 || !ascending {
+                return Err(WtaccError {
+                    path: PathBuf::new(),
+                    message: format!(
+                        "pixel ({}, {}): object_id counts must be of ids above 0, ascending, each at least 1",
+                        i % w,
+                        i / w
+                    ),
+                });
+            }
+            total = total.saturating_add(count);
+            if total > held {
+                return Err(too_large("an object_id count", i));
+            }
+            counts.push((id, count));
+        }
+        out.push(counts);
+    }
+    if !plane.is_empty() {
+        return Err(WtaccError {
+            path: PathBuf::new(),
+            message: format!("{} bytes after the object_id sums", plane.len()),
+        });
+    }
+    Ok(out)
 }
 
 /// The magic's first seven bytes; the eighth is the version.

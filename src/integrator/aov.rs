@@ -39,6 +39,21 @@
 //!   unit ray direction, from the camera's origin), whatever the surface.
 //!   The image is the mean over the samples whose camera ray hit something
 //!   (the film keeps a hit count per pixel), and `+inf` where none did.
+//! - **alpha**: whether the camera ray hit something (a surface that
+//!   cut-outs let through is not a hit: the ray goes on behind it); the
+//!   image is the fraction of the pixel's samples that hit, exactly
+//!   `hits / n`. The engines record no column of their own for it: a
+//!   sample hit when its depth is below `+inf`.
+//! - **zdepth**: the camera ray's hit distance along the camera's forward
+//!   axis, `t · (d · forward)` ([`zdepth`]): the `z` of the hit point in
+//!   camera space (what OpenCV and NeRF datasets call depth), where
+//!   `depth` is the distance along the ray. Mean over the samples that
+//!   hit, `+inf` where none did, like depth.
+//! - **object_id**: the id of the object the camera ray hit (0 for none;
+//!   ids and names are the scene's [`Objects`](crate::scene::Objects));
+//!   the image is the id most of the pixel's samples saw, the misses
+//!   voting for 0, a tie going to the smallest id — from exact per-id
+//!   counts, so the same whatever the split of the samples.
 //! - **variance**: the per-pixel, per-channel unbiased sample variance of
 //!   the radiance samples, `s² = (Σx² − (Σx)²/n) / (n − 1)` (0 for
 //!   `n < 2`), from exact sums of the samples and of their squares (see
@@ -53,6 +68,14 @@
 
 use crate::scene::Material;
 use glam::Vec3;
+
+/// The zdepth AOV of a camera ray of unit direction `d` that hit at
+/// distance `t`: the hit's distance along the camera's unit `forward`
+/// axis, `t · (d · forward)` (the same operations in both engines).
+#[inline]
+pub fn zdepth(t: f32, d: Vec3, forward: Vec3) -> f32 {
+    t * d.dot(forward)
+}
 
 pub use crate::film::AovSample;
 

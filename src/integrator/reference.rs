@@ -210,6 +210,7 @@ impl ReferenceTracer {
             && let Some(a) = aov.as_deref_mut()
         {
             a.depth = hit.t;
+            a.object = self.tables.object_of(hit.triangle);
         }
         if !material.model.is_delta()
             && let Some(a) = aov.take()
@@ -321,6 +322,9 @@ impl ReferenceTracer {
         let ray = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
         let mut aov = AovSample::NONE;
         let l = self.trace_camera_path(sampler, &mut path, ray, counters, &mut aov);
+        if aov.depth < f32::INFINITY {
+            aov.zdepth = super::aov::zdepth(aov.depth, ray.1, camera.forward());
+        }
         (l, aov)
     }
 

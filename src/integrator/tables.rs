@@ -95,6 +95,9 @@ pub struct Tables {
     /// radiance is looked up per hit and per light sample
     /// ([`Tables::emission_at`]).
     emissive_maps: bool,
+    /// Each primitive's object id ([`crate::scene::Objects`]): read only
+    /// by the object_id AOV.
+    objects: Vec<u32>,
 }
 
 impl Tables {
@@ -174,7 +177,15 @@ impl Tables {
             textures: scene.texturing.textures.clone(),
             cutouts: (scene.materials.iter()).any(|m| m.coverage != Coverage::Opaque),
             emissive_maps: (scene.materials.iter()).any(|m| m.maps.emissive.is_some()),
+            objects: scene.objects.of_primitive.clone(),
         }
+    }
+
+    /// The id of the object primitive `prim` belongs to (1 for a primitive
+    /// of no listed object).
+    #[inline]
+    pub fn object_of(&self, prim: u32) -> u32 {
+        self.objects.get(prim as usize).copied().unwrap_or(1)
     }
 
     /// Whether the surface hit `hit` (a primitive, or a miss) emits: a

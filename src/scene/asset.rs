@@ -188,6 +188,13 @@ pub struct Asset {
     pub meshes: Vec<AssetMesh>,
     /// Placements of the meshes.
     pub instances: Vec<Instance>,
+    /// The glTF node of each instance (an index into `node_names`), in
+    /// the order of `instances`; empty when the loader has no nodes (OBJ,
+    /// PLY). What the object_id AOV tells apart.
+    pub instance_nodes: Vec<u32>,
+    /// The name of each glTF node (its own, else its mesh's, else
+    /// `node N`).
+    pub node_names: Vec<String>,
     /// Materials.
     pub materials: Vec<PbrMaterial>,
     /// Textures, decoded.

@@ -174,7 +174,21 @@ pub fn place(
         ..asset.default_material.clone()
     };
     let default_material = b.material(named(material(asset, &default, first_texture)));
-    for inst in &asset.instances {
+    // One object per glTF node (its instances are consecutive), or one
+    // for the whole asset when the loader has no nodes.
+    let mut node = None;
+    for (k, inst) in asset.instances.iter().enumerate() {
+        let this = asset.instance_nodes.get(k).copied();
+        if k == 0 || this != node {
+            node = this;
+            let own = this.and_then(|n| asset.node_names.get(n as usize));
+            b.object(&match (prefix, own) {
+                ("", Some(own)) => own.clone(),
+                ("", None) => "asset".into(),
+                (p, Some(own)) => format!("{p}/{own}"),
+                (p, None) => p.to_string(),
+            });
+        }
         let mesh = &asset.meshes[inst.mesh as usize];
         let transform = placement.map_or(inst.transform, |p| p * inst.transform);
         let material = mesh.material.map_or(default_material, |m| first + m);

@@ -177,6 +177,13 @@ pub struct SceneBuilder {
     options: RenderOptions,
     sources: Vec<PathBuf>,
     environment: Option<super::environment::Environment>,
+    /// The objects' names, and the id of the one being added (0 before
+    /// the first [`object`](Self::object)).
+    object_names: Vec<String>,
+    object: u32,
+    /// The object id of every triangle, and of every sphere.
+    triangle_objects: Vec<u32>,
+    sphere_objects: Vec<u32>,
 }
 
 impl SceneBuilder {
@@ -197,6 +204,10 @@ impl SceneBuilder {
             options: RenderOptions::default(),
             sources: Vec::new(),
             environment: None,
+            object_names: Vec::new(),
+            object: 0,
+            triangle_objects: Vec::new(),
+            sphere_objects: Vec::new(),
         }
     }
 
@@ -317,9 +328,18 @@ impl SceneBuilder {
         Ok(())
     }
 
+    /// Start a new object called `name`: the primitives added from now on
+    /// belong to it ([`super::Objects`]). Returns its id.
+    pub fn object(&mut self, name: &str) -> u32 {
+        self.object_names.push(name.to_string());
+        self.object = self.object_names.len() as u32;
+        self.object
+    }
+
     /// A sphere (its center finite and its radius positive, checked by
     /// the front end where they are written).
     pub fn sphere(&mut self, center: Vec3, radius: f32, material: u32) {
+        self.sphere_objects.push(self.object);
         self.spheres.push(Sphere {
             center,
             radius,
@@ -441,6 +461,7 @@ impl SceneBuilder {
             self.uv.push(uv);
         }
         self.triangles.push(triangle);
+        self.triangle_objects.push(self.object);
     }
 
     /// The world-space bounds of the triangles so far, or `None` where
@@ -483,6 +504,18 @@ impl SceneBuilder {
         if !colours.is_empty() {
             colours.resize(self.triangles.len(), [[1.0; 4]; 3]);
         }
+        // Primitives added before any object form one more, "(unnamed)".
+        let mut object_names = self.object_names;
+        let mut of_primitive = self.triangle_objects;
+        of_primitive.extend(self.sphere_objects);
+        if of_primitive.contains(&0) {
+            object_names.push("(unnamed)".into());
+            let id = object_names.len() as u32;
+            of_primitive
+                .iter_mut()
+                .filter(|o| **o == 0)
+                .for_each(|o| *o = id);
+        }
         Ok(Scene {
             name: self.name,
             camera,
@@ -499,6 +532,10 @@ impl SceneBuilder {
             options: self.options,
             sources: self.sources,
             environment: self.environment,
+            objects: super::Objects {
+                names: object_names,
+                of_primitive,
+            },
         })
     }
 }

@@ -127,6 +127,12 @@ impl RasterCamera {
         V3::new(d.x * recip, d.y * recip, d.z * recip)
     }
 
+    /// The unit direction the camera looks along (the image centre's ray).
+    #[inline]
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
     /// The centre of projection: every camera ray's origin.
     #[inline]
     pub fn position(&self) -> Vec3 {

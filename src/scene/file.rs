@@ -261,15 +261,21 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     // meshes, then assets, then spheres, each in file order.
     polygons(&t, &raw, ccw, &names, &mut b)?;
     for (i, m) in raw.meshes.iter().enumerate() {
+        let label = m.get_ref().name.clone();
+        b.object(&label.unwrap_or_else(|| format!("mesh[{i}]")));
         mesh(&t, i, m.get_ref(), &names, &mut b)?;
     }
     for (i, g) in raw.generated.iter().enumerate() {
+        let label = g.get_ref().name.clone();
+        b.object(&label.unwrap_or_else(|| format!("generate[{i}]")));
         generate(&t, i, g.get_ref(), &names, &mut b)?;
     }
     for (i, a) in raw.assets.iter().enumerate() {
         asset(&t, i, a.get_ref(), &mut b)?;
     }
     for (i, s) in raw.spheres.iter().enumerate() {
+        let label = s.get_ref().name.clone();
+        b.object(&label.unwrap_or_else(|| format!("sphere[{i}]")));
         sphere(&t, i, s.get_ref(), &names, &mut b)?;
     }
     let whole = Origin::file(file);
@@ -647,21 +653,25 @@ fn polygons(
         let tr = tr.get_ref();
         let v = &tr.vertices;
         let what = format!("triangle[{i}]");
-        (what, &tr.material, v.span(), v.get_ref().0.to_vec())
+        let label = tr.name.clone().unwrap_or_else(|| what.clone());
+        (what, label, &tr.material, v.span(), v.get_ref().0.to_vec())
     });
     let quads = raw.quads.iter().enumerate().map(|(i, q)| {
         let q = q.get_ref();
         let v = &q.vertices;
+        let what = format!("quad[{i}]");
         (
-            format!("quad[{i}]"),
+            what.clone(),
+            q.name.clone().unwrap_or(what),
             &q.material,
             v.span(),
             v.get_ref().0.to_vec(),
         )
     });
-    for (what, material, span, verts) in triangles.chain(quads) {
+    for (what, label, material, span, verts) in triangles.chain(quads) {
         let m = names.get(t, material, &format!("{what}.material"))?;
         let verts: Vec<Vec3> = verts.into_iter().map(Vec3::from_array).collect();
+        b.object(&label);
         b.polygon(&verts, ccw, m, &t.origin(span, &format!("{what}.vertices")))?;
     }
     Ok(())

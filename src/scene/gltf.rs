@@ -662,6 +662,13 @@ impl Reader<'_> {
                 .collect(),
         };
         let mut mesh_of: HashMap<(usize, usize), Option<u32>> = HashMap::new();
+        self.asset.node_names = (doc.nodes())
+            .map(|n| {
+                let mesh = n.mesh().and_then(|m| m.name().map(str::to_string));
+                (n.name().map(str::to_string).or(mesh))
+                    .unwrap_or_else(|| format!("node {}", n.index()))
+            })
+            .collect();
         let mut visited = vec![false; doc.nodes().len()];
         let mut stack: Vec<(gltf::Node, Mat4)> = roots
             .into_iter()
@@ -716,6 +723,7 @@ impl Reader<'_> {
                             mesh: id,
                             transform: world,
                         });
+                        self.asset.instance_nodes.push(node.index() as u32);
                     }
                 }
             }

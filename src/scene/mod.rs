@@ -234,6 +234,41 @@ pub struct Scene {
     /// The light from infinitely far away that rays leaving the scene see
     /// (`None`: they see black).
     pub environment: Option<environment::Environment>,
+    /// The scene's objects, for the object_id AOV: what each primitive
+    /// belongs to, and their names.
+    pub objects: Objects,
+}
+
+/// A scene's objects (what the object_id AOV tells apart): one per entry
+/// of a scene file (`[[triangle]]`, `[[quad]]`, `[[sphere]]`, `[[mesh]]`,
+/// `[[generate]]`, named by their `name`, else `quad[3]`…) and one per
+/// node of a glTF asset (every primitive of its mesh), numbered from 1 in
+/// the order they are read (0 is the background).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Objects {
+    /// Object `k`'s name is `names[k - 1]`: an entry's `name`, else
+    /// `sphere[2]`, `mesh[0]`…; `FILE/NODE` for a node of an `[[asset]]`;
+    /// a glTF node's name (else its mesh's, else `node N`).
+    pub names: Vec<String>,
+    /// The id of each primitive's object, triangles then spheres (the
+    /// primitive numbering of hits).
+    pub of_primitive: Vec<u32>,
+}
+
+impl Objects {
+    /// The id → name legend: `(id, name)` for every object.
+    pub fn legend(&self) -> impl Iterator<Item = (u32, &str)> {
+        (self.names.iter())
+            .enumerate()
+            .map(|(k, n)| (k as u32 + 1, n.as_str()))
+    }
+
+    /// The name of object `id` (`None` for 0, the background, or an id
+    /// beyond the last).
+    pub fn name(&self, id: u32) -> Option<&str> {
+        let k = (id as usize).checked_sub(1)?;
+        self.names.get(k).map(String::as_str)
+    }
 }
 
 impl Scene {
@@ -256,6 +291,24 @@ impl Scene {
         let mut scene = file::parse(&text, &path.display().to_string())?;
         scene.sources.insert(0, path.to_path_buf());
         Ok(scene)
+    }
+
+    /// Whether the environment is not visible to camera rays (`visible =
+    /// false`, or [`make_transparent`](Self::make_transparent)): renders
+    /// of such a scene record the alpha AOV
+    /// ([`crate::render::RenderSettings::for_scene`]).
+    pub fn has_transparent_background(&self) -> bool {
+        self.environment.as_ref().is_some_and(|e| !e.visible)
+    }
+
+    /// Make the background transparent (`--transparent`): the environment
+    /// (if any) lights the scene but camera rays that leave it see black,
+    /// and the scene's AOVs include alpha.
+    pub fn make_transparent(&mut self) {
+        if let Some(env) = &mut self.environment {
+            env.visible = false;
+        }
+        self.options.aov = Some(self.options.aov.unwrap_or_default().with(Aov::Alpha));
     }
 
     /// The largest absolute coordinate of any vertex (at least 1).

@@ -102,19 +102,46 @@ pub enum Aov {
     Depth,
     /// The per-pixel sample variance of the radiance.
     Variance,
+    /// The fraction of the pixel's camera rays that hit something (the
+    /// coverage: what `--transparent` writes as the image's alpha).
+    Alpha,
+    /// The camera ray's hit distance along the camera's forward axis.
+    ZDepth,
+    /// The object the most camera rays of the pixel hit.
+    ObjectId,
 }
 
 impl Aov {
-    /// Every AOV, in their canonical order (the order of files, layers and
-    /// lists).
+    /// The first four AOVs, those of [`AovSet::ALL`] (albedo, normal,
+    /// depth, variance), in canonical order.
     pub const ALL: [Aov; 4] = [Aov::Albedo, Aov::Normal, Aov::Depth, Aov::Variance];
 
-    /// Every AOV's name.
-    pub const NAMES: &[&str] = &["albedo", "normal", "depth", "variance"];
+    /// Every AOV, in their canonical order (the order of files, layers and
+    /// lists): [`Aov::ALL`], then alpha, zdepth and object_id.
+    pub const EVERY: [Aov; 7] = [
+        Aov::Albedo,
+        Aov::Normal,
+        Aov::Depth,
+        Aov::Variance,
+        Aov::Alpha,
+        Aov::ZDepth,
+        Aov::ObjectId,
+    ];
+
+    /// Every AOV's name, in canonical order.
+    pub const NAMES: &[&str] = &[
+        "albedo",
+        "normal",
+        "depth",
+        "variance",
+        "alpha",
+        "zdepth",
+        "object_id",
+    ];
 
     /// The AOV named `name`.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|a| a.name() == name)
+        Self::EVERY.into_iter().find(|a| a.name() == name)
     }
 
     /// The AOV's name (in `--aov`, file names and EXR layers).
@@ -138,8 +165,12 @@ impl AovSet {
     /// What the denoiser needs: albedo and normal.
     pub const DENOISE: AovSet = AovSet(1 << Aov::Albedo as u8 | 1 << Aov::Normal as u8);
 
-    /// Every AOV.
+    /// The first four AOVs ([`Aov::ALL`]): albedo, normal, depth and
+    /// variance.
     pub const ALL: AovSet = AovSet(0b1111);
+
+    /// Every AOV ([`Aov::EVERY`]).
+    pub const EVERY: AovSet = AovSet(0b111_1111);
 
     /// The set of the AOVs in `aovs`.
     pub fn of(aovs: &[Aov]) -> Self {
@@ -192,9 +223,9 @@ impl AovSet {
         self.0 == 0
     }
 
-    /// The AOVs in the set, in canonical order ([`Aov::ALL`]).
+    /// The AOVs in the set, in canonical order ([`Aov::EVERY`]).
     pub fn iter(self) -> impl Iterator<Item = Aov> {
-        Aov::ALL.into_iter().filter(move |a| self.contains(*a))
+        Aov::EVERY.into_iter().filter(move |a| self.contains(*a))
     }
 
     /// The names of the AOVs in the set, in canonical order.
@@ -234,6 +265,9 @@ mod tests {
         let e = AovSet::parse_list("albedo,colour").unwrap_err();
         assert!(e.contains("\"colour\"") && e.contains("depth"), "{e}");
         assert!(AovSet::parse_list("").is_err());
+        let every = AovSet::parse_list("object_id,zdepth,alpha,albedo,normal,depth,variance");
+        assert_eq!(every.unwrap(), AovSet::EVERY);
+        assert_eq!(AovSet::EVERY.names(), Aov::NAMES);
         assert_eq!(AovSet::NONE.to_string(), "none");
     }
 }

@@ -171,7 +171,7 @@ impl WavefrontEngine {
                 if ctx.lights.environment().is_some() {
                     shade::shade_escaped(queue, &ctx, depth);
                 }
-                shade::record_aovs(queue, ctx.tables, depth);
+                shade::record_aovs(queue, ctx.tables, depth, job.frame.camera.forward());
             });
             counters.invalid_samples += time.time(Stage::Retire, || {
                 retire::retire(queue, &ctx, depth, last, job)

@@ -69,6 +69,11 @@ pub struct AovColumns {
     pub normal: [Vec<f32>; 3],
     /// The camera ray's hit distance (`+inf` if it hit nothing).
     pub depth: Vec<f32>,
+    /// The camera ray's hit distance along the camera's forward axis
+    /// (`+inf` if it hit nothing).
+    pub zdepth: Vec<f32>,
+    /// The id of the object the camera ray hit (0 if none).
+    pub object: Vec<u32>,
 }
 
 impl AovColumns {
@@ -80,6 +85,8 @@ impl AovColumns {
             albedo: [col(), col(), col()],
             normal: [col(), col(), col()],
             depth: vec![f32::INFINITY; rows],
+            zdepth: vec![f32::INFINITY; rows],
+            object: vec![0; rows],
         }
     }
 
@@ -89,7 +96,9 @@ impl AovColumns {
         for col in self.albedo.iter_mut().chain(&mut self.normal) {
             col[rows.clone()].fill(0.0);
         }
-        self.depth[rows].fill(f32::INFINITY);
+        self.depth[rows.clone()].fill(f32::INFINITY);
+        self.zdepth[rows.clone()].fill(f32::INFINITY);
+        self.object[rows].fill(0);
     }
 
     /// Path `i`'s AOVs, for the film.
@@ -99,6 +108,8 @@ impl AovColumns {
             albedo: self.albedo.each_ref().map(|c| c[i]),
             normal: self.normal.each_ref().map(|c| c[i]),
             depth: self.depth[i],
+            zdepth: self.zdepth[i],
+            object: self.object[i],
         }
     }
 
@@ -109,6 +120,8 @@ impl AovColumns {
             col[to] = col[from];
         }
         self.depth[to] = self.depth[from];
+        self.zdepth[to] = self.zdepth[from];
+        self.object[to] = self.object[from];
     }
 
     #[inline]
@@ -118,6 +131,8 @@ impl AovColumns {
             col.swap(a, b);
         }
         self.depth.swap(a, b);
+        self.zdepth.swap(a, b);
+        self.object.swap(a, b);
     }
 }
 
@@ -146,12 +161,12 @@ impl<P: bytemuck::Pod> PathQueue<P> {
     }
 
     /// [`with_capacity`](Self::with_capacity), with AOV columns when
-    /// `aovs` asks for AOVs recorded along the paths (albedo, normal or
-    /// depth; the variance needs none).
+    /// `aovs` asks for AOVs recorded along the paths (all but the
+    /// variance, which needs none).
     pub fn with_aovs(n: usize, aovs: AovSet) -> Self {
         let mut q = Self::with_capacity(n);
         let surface = aovs.contains(Aov::Albedo) || aovs.contains(Aov::Normal);
-        if surface || aovs.contains(Aov::Depth) {
+        if !aovs.iter().all(|a| a == Aov::Variance) {
             q.aov = Some(AovColumns::with_rows(q.capacity(), surface));
         }
         q

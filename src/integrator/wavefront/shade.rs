@@ -2,10 +2,12 @@
 
 use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
+use crate::integrator::aov::zdepth;
 use crate::integrator::nee::{emission_weight, escaped};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::math::V3;
+use glam::Vec3;
 
 /// For every path whose ray hit a surface from its front side:
 /// radiance += throughput × emitted radiance × its MIS weight (1 unless
@@ -59,12 +61,13 @@ pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, d
 
 /// Record the AOVs of the hits at depth `depth` in the queue's AOV columns
 /// (nothing without them), as [`crate::integrator::aov`] defines them:
-/// at depth 0 the camera ray's hit distance; at the path's first
+/// at depth 0 the camera ray's hit distance, that along the camera's
+/// `forward` axis and the object hit; at the path's first
 /// non-specular vertex the material's albedo and the facing shading
 /// normal (the one *bounce* scatters with: interpolated vertex normals,
 /// turned towards the ray). Scalar, one path at a time, with the
 /// reference tracer's operations, so the values are its bits.
-pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32) {
+pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, forward: Vec3) {
     let n = queue.len();
     let Some(aov) = queue.aov.as_mut() else {
         return;
@@ -75,7 +78,10 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32) {
             continue;
         }
         if depth == 0 {
+            let d = Vec3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
             aov.depth[i] = queue.t[i];
+            aov.zdepth[i] = zdepth(queue.t[i], d, forward);
+            aov.object[i] = tables.object_of(hit);
         }
         if !aov.surface || aov.pending[i] == 0 || tables.model_of(hit).is_delta() {
             continue;
