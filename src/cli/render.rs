@@ -600,6 +600,9 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
     if let Some(warning) = job.scene.light_warning() {
         eprintln!("warning: {warning}");
     }
+    if let Some(unreached) = job.scene.unreached_lights(s.integrator) {
+        eprintln!("warning: {unreached}");
+    }
     if job.check {
         // What would be rendered, on stdout: the scene, settings, shard,
         // resume and outputs are all checked by now (and the engine below).

@@ -26,6 +26,7 @@
 //! one sample exactly as before.
 
 use super::environment::EnvLight;
+use super::punctual::Punctual;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use wide::f32x8;
@@ -55,6 +56,11 @@ pub struct Lights {
     /// A distance from any point of the scene to beyond its bounds: a
     /// direction drawn from the environment is a point this far away.
     far: f32,
+    /// The scene's sun, point and spot lights that send light, after the
+    /// emitters in the running sums (before the environment).
+    punctual: Vec<Punctual>,
+    /// Whether some of them are suns that rays leaving the scene see.
+    suns: bool,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, a
@@ -339,6 +345,10 @@ pub struct LightPoint<R> {
     pub scale: R,
     /// The emitter's [`Emitter::prim`] (bits).
     pub prim: R,
+    /// 1 for a delta light (a point or spot light, a sun of diameter 0:
+    /// `pdf_solid_angle` is then the probability it was picked, and no
+    /// other strategy can find it, so its MIS weight is 1); 0 otherwise.
+    pub delta: R,
 }
 
 impl<R: Real> LightPoint<R> {
@@ -377,6 +387,7 @@ impl<R: Real> LightPoint<R> {
             pdf_solid_angle: R::splat(0.0),
             scale: e.scale,
             prim: e.prim,
+            delta: R::splat(0.0),
         }
     }
 
@@ -504,11 +515,18 @@ impl Lights {
         let (lo, hi) = scene_bounds(scene);
         let largest = lo.abs().max(hi.abs()).max_element();
         lights.far = 4.0 * 3f32.sqrt() * largest + 1.0;
+        let r = 0.5 * f64::from((hi - lo).length()).max(1e-3);
+        lights.punctual = scene
+            .lights
+            .iter()
+            .filter_map(|l| Punctual::new(l, r))
+            .collect();
+        lights.suns = lights.punctual.iter().any(Punctual::is_visible_sun);
+        total += lights.punctual.iter().map(|p| p.power).sum::<f64>();
         let mut environment_power = 0.0;
         if let Some(env) = &scene.environment {
             let env = EnvLight::new(env);
             if !env.is_black() {
-                let r = 0.5 * f64::from((hi - lo).length()).max(1e-3);
                 environment_power = 4.0 * std::f64::consts::PI * r * r * env.mean_radiance;
                 environment_power = environment_power.max(f64::MIN_POSITIVE);
                 total += environment_power;
@@ -524,6 +542,11 @@ impl Lights {
             for prim in prims.iter().flatten() {
                 lights.emitter_of[*prim as usize] = k as u32;
             }
+        }
+        for p in &mut lights.punctual {
+            sum += p.power;
+            lights.cdf.push((sum / total) as f32);
+            p.set_probability((p.power / total) as f32);
         }
         if environment_power > 0.0 {
             lights.cdf.push(1.0);
@@ -553,11 +576,12 @@ impl Lights {
         }
     }
 
-    /// [`Lights::sample`] in a scene with an environment `env`: the
-    /// running sums pick an emitter or, past the last emitter, the
-    /// environment, whose direction becomes a point [`Lights::far`] away
-    /// facing back (its density is by solid angle).
-    fn sample_with_environment(&self, env: &EnvLight, o: V3<f32>, u: [f32; 2]) -> LightPoint<f32> {
+    /// [`Lights::sample`] in a scene with an environment or punctual
+    /// lights: the running sums pick an emitter, a punctual light
+    /// ([`Punctual::sample`]) or, past the last, the environment, whose
+    /// direction becomes a point [`Lights::far`] away facing back (its
+    /// density is by solid angle).
+    fn sample_with_extras(&self, o: V3<f32>, u: [f32; 2]) -> LightPoint<f32> {
         let n = self.emitters.len();
         let k = self
             .cdf
@@ -568,7 +592,24 @@ impl Lights {
         if k < n {
             return self.point_on(&self.emitters[k], o, [u0, u[1]]);
         }
-        match env.sample([u0, u[1]]) {
+        if let Some(p) = self.punctual.get(k - n) {
+            let s = p.sample(o, [u0, u[1]], self.far);
+            return LightPoint {
+                point: s.point,
+                normal: s.normal,
+                emission: s.emission,
+                pdf_area: 0.0,
+                pdf_solid_angle: s.pdf,
+                scale: 0.0,
+                prim: NO_PRIM_BITS,
+                delta: if s.delta { 1.0 } else { 0.0 },
+            };
+        }
+        match self
+            .environment
+            .as_ref()
+            .and_then(|env| env.sample([u0, u[1]]))
+        {
             Some(s) => LightPoint {
                 point: s.dir.mul_add(self.far, o),
                 normal: -s.dir,
@@ -577,6 +618,7 @@ impl Lights {
                 pdf_solid_angle: self.environment_probability * s.pdf,
                 scale: 0.0,
                 prim: NO_PRIM_BITS,
+                delta: 0.0,
             },
             None => LightPoint::on_by_area(&Emitter::NONE, u),
         }
@@ -589,7 +631,7 @@ impl Lights {
     /// lane (the same bits).
     #[inline(always)]
     pub fn sample_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
-        if self.environment_probability == 0.0 {
+        if !self.has_extras() {
             let (emitters, u0) = self.pick_8(u[0], lanes);
             return self.point_on(&emitters, o, [u0, u[1]]);
         }
@@ -616,6 +658,7 @@ impl Lights {
             pdf_solid_angle: lane(&|p| p.pdf_solid_angle),
             scale: lane(&|p| p.scale),
             prim: lane(&|p| p.prim),
+            delta: lane(&|p| p.delta),
         }
     }
 
@@ -623,7 +666,7 @@ impl Lights {
     #[inline]
     pub fn single(&self) -> Option<&Emitter> {
         match self.emitters.as_slice() {
-            [e] if self.environment_probability == 0.0 => Some(e),
+            [e] if !self.has_extras() => Some(e),
             _ => None,
         }
     }
@@ -631,7 +674,35 @@ impl Lights {
     /// Whether the scene has nothing to sample: no emitter, no
     /// environment with light.
     pub fn is_empty(&self) -> bool {
-        self.triangle.is_empty() && self.environment_probability == 0.0
+        self.triangle.is_empty() && !self.has_extras()
+    }
+
+    /// Whether the scene has an environment with light, or punctual
+    /// lights: lights sampled after the emitters.
+    #[inline]
+    fn has_extras(&self) -> bool {
+        self.environment_probability > 0.0 || !self.punctual.is_empty()
+    }
+
+    /// Whether rays that leave the scene can see something: an
+    /// environment, or a sun with a cone.
+    #[inline]
+    pub fn sees_escapes(&self) -> bool {
+        self.environment.is_some() || self.suns
+    }
+
+    /// The suns whose cones hold the direction `d` of a ray that left the
+    /// scene: each one's radiance and the density with which
+    /// [`Lights::sample`] draws `d` from it ([`Punctual::seen`]).
+    #[inline]
+    pub fn suns_seen(&self, d: V3<f32>) -> impl Iterator<Item = (V3<f32>, f32)> + '_ {
+        let suns = if self.suns { &self.punctual[..] } else { &[] };
+        suns.iter().filter_map(move |p| p.seen(d))
+    }
+
+    /// The scene's sun, point and spot lights that send light.
+    pub fn punctual(&self) -> &[Punctual] {
+        &self.punctual
     }
 
     /// Number of emitters (not counting an environment).
@@ -667,10 +738,8 @@ impl Lights {
         if self.is_empty() {
             return None;
         }
-        if let Some(env) = &self.environment
-            && self.environment_probability > 0.0
-        {
-            return Some(self.sample_with_environment(env, o, u));
+        if self.has_extras() {
+            return Some(self.sample_with_extras(o, u));
         }
         let (emitter, u0) = self.pick(u[0]);
         Some(self.point_on(emitter, o, [u0, u[1]]))

@@ -24,6 +24,7 @@ pub mod environment;
 pub mod lights;
 pub mod nee;
 pub mod offset;
+pub mod punctual;
 pub mod reference;
 pub mod sampler;
 pub mod surface;

@@ -226,7 +226,12 @@ pub fn connect_shaded<R: Real>(
         light.pdf_solid_angle,
         light.pdf_area * dist2 / cos_light,
     );
-    let w = power_heuristic(pdf_light, pdf_bsdf);
+    // A delta light: no other strategy finds it (weight 1).
+    let w = R::select(
+        zero.lt(light.delta),
+        R::splat(1.0),
+        power_heuristic(pdf_light, pdf_bsdf),
+    );
     let scale = w / pdf_light;
     let radiance = V3::new(
         fcos.x * light.emission.x * scale,
@@ -264,10 +269,13 @@ pub fn emission_weight(
 }
 
 /// The radiance a ray of direction `d` that left the scene brings back:
-/// the environment's (`None` without one, or for a camera ray — `camera`
-/// — when the environment is not visible), weighted, when the estimator
-/// samples lights and the ray was drawn with density `bsdf_pdf > 0`,
-/// against the environment's own sampling by the power heuristic.
+/// the environment's and that of the suns whose cones hold `d` (`None`
+/// where there is neither, or for a camera ray — `camera` — unless the
+/// scene has a visible environment: a sun's disc is part of the sky, and
+/// a transparent background hides it too), each
+/// weighted, when the estimator samples lights and the ray was drawn with
+/// density `bsdf_pdf > 0`, against its own sampling by the power
+/// heuristic.
 #[inline]
 pub fn escaped(
     estimator: &Estimator,
@@ -276,16 +284,29 @@ pub fn escaped(
     d: V3<f32>,
     camera: bool,
 ) -> Option<V3<f32>> {
-    let env = lights.environment()?;
-    if camera && !env.visible {
+    let env = lights.environment();
+    if camera && !env.is_some_and(|e| e.visible) {
         return None;
     }
-    let l = env.radiance(d);
-    if !estimator.samples_lights() || bsdf_pdf == 0.0 {
-        return Some(l);
+    let mis = estimator.samples_lights() && bsdf_pdf != 0.0;
+    let mut seen = env.map(|env| {
+        let l = env.radiance(d);
+        if !mis {
+            return l;
+        }
+        let w = power_heuristic(bsdf_pdf, lights.environment_pdf(d));
+        V3::new(l.x * w, l.y * w, l.z * w)
+    });
+    for (l, pdf) in lights.suns_seen(d) {
+        let w = if mis {
+            power_heuristic(bsdf_pdf, pdf)
+        } else {
+            1.0
+        };
+        let sum = seen.unwrap_or(V3::new(0.0, 0.0, 0.0));
+        seen = Some(l.mul_add(w, sum));
     }
-    let w = power_heuristic(bsdf_pdf, lights.environment_pdf(d));
-    Some(V3::new(l.x * w, l.y * w, l.z * w))
+    seen
 }
 
 /// The probability that Russian roulette lets a path of throughput `beta`

@@ -201,6 +201,9 @@ pub struct Asset {
     pub textures: Vec<Texture>,
     /// Perspective cameras, in the file's order of nodes.
     pub cameras: Vec<AssetCamera>,
+    /// Sun, point and spot lights (glTF's `KHR_lights_punctual`), placed
+    /// by their nodes, in wavetrace's radiometric units.
+    pub lights: Vec<super::punctual::PunctualLight>,
     /// What was skipped or ignored (one line each).
     pub warnings: Vec<String>,
     /// The material of meshes without one: glTF's default (white,

@@ -194,6 +194,9 @@ pub fn place(
         let material = mesh.material.map_or(default_material, |m| first + m);
         b.instance(mesh, transform, material, at)?;
     }
+    for light in &asset.lights {
+        b.light(placement.map_or_else(|| light.clone(), |p| light.transformed(p)));
+    }
     Ok(())
 }
 
@@ -214,7 +217,7 @@ pub fn scene_from_asset(
         .ok_or_else(|| whole.error("the asset has no triangles to render"))?;
     let mut b = SceneBuilder::new(name);
     place(&mut b, asset, None, "", &whole)?;
-    if !b.has_emitting_triangle() {
+    if !b.has_emitting_triangle() && !b.has_punctual_light() {
         b.environment(Some(super::environment::default_sky()));
     }
     let view = choose_camera(asset, camera, lo, hi).map_err(|m| whole.error(m))?;

@@ -177,6 +177,7 @@ pub struct SceneBuilder {
     options: RenderOptions,
     sources: Vec<PathBuf>,
     environment: Option<super::environment::Environment>,
+    lights: Vec<super::punctual::PunctualLight>,
     /// The objects' names, and the id of the one being added (0 before
     /// the first [`object`](Self::object)).
     object_names: Vec<String>,
@@ -204,6 +205,7 @@ impl SceneBuilder {
             options: RenderOptions::default(),
             sources: Vec::new(),
             environment: None,
+            lights: Vec::new(),
             object_names: Vec::new(),
             object: 0,
             triangle_objects: Vec::new(),
@@ -263,6 +265,16 @@ impl SceneBuilder {
             self.source(&path);
         }
         self.environment = env;
+    }
+
+    /// Adds a sun, point or spot light.
+    pub fn light(&mut self, light: super::punctual::PunctualLight) {
+        self.lights.push(light);
+    }
+
+    /// Whether some sun, point or spot light sends light.
+    pub fn has_punctual_light(&self) -> bool {
+        self.lights.iter().any(|l| l.emits())
     }
 
     /// Records that the scene was read from the file at `path`.
@@ -532,6 +544,7 @@ impl SceneBuilder {
             options: self.options,
             sources: self.sources,
             environment: self.environment,
+            lights: self.lights,
             objects: super::Objects {
                 names: object_names,
                 of_primitive,

@@ -42,6 +42,8 @@ struct SceneFile {
     #[serde(default, rename = "asset")]
     assets: Vec<Spanned<AssetFile>>,
     environment: Option<Spanned<super::environment::EnvironmentFile>>,
+    #[serde(default, rename = "light")]
+    lights: Vec<Spanned<super::punctual::LightFile>>,
 }
 
 /// A TOML array of exactly `N` elements: serde's arrays read the first `N`
@@ -288,6 +290,10 @@ pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     b.settings(max_depth, options);
     let env = super::environment::from_file(raw.environment.as_ref(), file);
     b.environment(env.map_err(|(span, field, m)| t.err(span, &field, m))?);
+    for (k, l) in raw.lights.iter().enumerate() {
+        let light = super::punctual::from_file(k, l.get_ref());
+        b.light(light.map_err(|(span, field, m)| t.err(span, &field, m))?);
+    }
     b.finish(&whole)
 }
 

@@ -26,6 +26,9 @@
 //!   [`PbrMaterial`]); occlusion textures are ignored (a path tracer
 //!   computes occlusion);
 //! - perspective cameras (orthographic ones are skipped with a warning);
+//! - `KHR_lights_punctual` lights (directional, point, spot), placed by
+//!   their nodes, their candela and lux divided by 683 lm/W
+//!   ([`LUMENS_PER_WATT`]) into W/sr and W/m²;
 //! - images in PNG or JPEG, in a buffer view, a data URI or a file beside
 //!   the asset;
 //! - `KHR_draco_mesh_compression` and `EXT_meshopt_compression` are
@@ -34,6 +37,7 @@
 //!   ignored with a warning.
 
 use super::asset::{AlphaMode, Asset, AssetCamera, AssetError, AssetMesh, Instance, PbrMaterial};
+use super::punctual::{LUMENS_PER_WATT, LightShape, PunctualLight};
 use super::texture::{ColourSpace, Filter, Sampler, Texture, TextureRef, UvTransform, Wrap};
 use base64::Engine;
 use glam::{Mat4, Vec3};
@@ -51,6 +55,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
     "KHR_materials_transmission",
     "KHR_materials_volume",
+    "KHR_lights_punctual",
 ];
 
 /// The most elements an accessor without a buffer view (all zeros, then
@@ -651,6 +656,88 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// A node's `KHR_lights_punctual` light, placed by `world` (at the
+    /// node's origin, shining along its −Z), its photometric intensity
+    /// converted to watts ([`LUMENS_PER_WATT`]): a point or spot light's
+    /// candela (lm/sr) to W/sr, a directional light's lux (lm/m²) to
+    /// W/m². `range` is ignored (light falls off as 1/r² everywhere).
+    fn read_light(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), AssetError> {
+        let json = &self.doc.as_json().nodes[node.index()];
+        let Some(index) = json
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .map(|l| l.light.value())
+        else {
+            return Ok(());
+        };
+        let count = self.doc.lights().map_or(0, |l| l.len());
+        if index >= count {
+            return Err(self.err(
+                format!(
+                    "nodes[{}].extensions.KHR_lights_punctual.light",
+                    node.index()
+                ),
+                format!("light {index} of {count}"),
+            ));
+        }
+        let Some(light) = node.light() else {
+            return Ok(());
+        };
+        let at = format!("extensions.KHR_lights_punctual.lights[{index}]");
+        let colour = Vec3::from(light.color());
+        let intensity = light.intensity();
+        if !(colour.is_finite() && colour.min_element() >= 0.0) {
+            return Err(self.err(format!("{at}.color"), "must be finite and non-negative"));
+        }
+        if !(intensity.is_finite() && intensity >= 0.0) {
+            return Err(self.err(format!("{at}.intensity"), "must be finite and non-negative"));
+        }
+        let shape = match light.kind() {
+            gltf::khr_lights_punctual::Kind::Directional => LightShape::Sun {
+                direction: Vec3::NEG_Z,
+                angle: 0.0,
+            },
+            gltf::khr_lights_punctual::Kind::Point => LightShape::Point {
+                position: Vec3::ZERO,
+            },
+            gltf::khr_lights_punctual::Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let half_pi = std::f32::consts::FRAC_PI_2;
+                if !(0.0..=half_pi).contains(&outer_cone_angle) || outer_cone_angle == 0.0 {
+                    return Err(self.err(
+                        format!("{at}.spot.outerConeAngle"),
+                        format!("{outer_cone_angle}: must lie in (0, π/2]"),
+                    ));
+                }
+                if !(0.0..outer_cone_angle).contains(&inner_cone_angle) {
+                    return Err(self.err(
+                        format!("{at}.spot.innerConeAngle"),
+                        format!("{inner_cone_angle}: must lie in [0, outerConeAngle)"),
+                    ));
+                }
+                LightShape::Spot {
+                    position: Vec3::ZERO,
+                    direction: Vec3::NEG_Z,
+                    inner: inner_cone_angle,
+                    outer: outer_cone_angle,
+                }
+            }
+        };
+        let name = light
+            .name()
+            .map_or_else(|| format!("light {index}"), str::to_string);
+        let local = PunctualLight {
+            shape,
+            strength: colour * (intensity / LUMENS_PER_WATT),
+            name,
+        };
+        self.asset.lights.push(local.transformed(world));
+        Ok(())
+    }
+
     fn read_scene(&mut self) -> Result<(), AssetError> {
         let doc = self.doc;
         let parent = self.parents()?;
@@ -730,6 +817,7 @@ impl Reader<'_> {
             if let Some(cam) = node.camera() {
                 self.read_camera(&cam, world)?;
             }
+            self.read_light(&node, world)?;
             for c in node.children().collect::<Vec<_>>().into_iter().rev() {
                 stack.push((c, world));
             }

@@ -3,7 +3,7 @@
 //! is one-sided), renders black, which is worth saying before the render
 //! rather than after.
 
-use super::Scene;
+use super::{Integrator, Scene};
 use glam::Vec3;
 
 /// What is wrong with a scene's lights.
@@ -37,12 +37,47 @@ impl std::fmt::Display for LightWarning {
     }
 }
 
+/// Delta lights (point and spot lights, suns of diameter 0) that an
+/// integrator other than `nee` never reaches: no ray can hit them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnreachedLights {
+    /// How many delta lights send light.
+    pub count: usize,
+    /// The integrator that cannot reach them.
+    pub integrator: Integrator,
+}
+
+impl std::fmt::Display for UnreachedLights {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the scene has {} delta light(s) (point, spot, or sun of angle 0): they are reached by \
+             next-event estimation only, so the {} integrator renders without their light; use \
+             --integrator nee (docs/lights.md)",
+            self.count,
+            self.integrator.name()
+        )
+    }
+}
+
 /// Emitters examined before the check gives up (and says nothing): each
 /// costs a pass over the scene's vertices, and the first one that faces a
 /// surface ends the check.
 const MAX_EMITTERS_CHECKED: usize = 64;
 
 impl Scene {
+    /// The scene's delta lights that `integrator` never reaches (every
+    /// integrator but `nee`), if it has any that send light.
+    pub fn unreached_lights(&self, integrator: Integrator) -> Option<UnreachedLights> {
+        let count = self
+            .lights
+            .iter()
+            .filter(|l| l.is_delta() && l.emits())
+            .count();
+        (count > 0 && integrator != Integrator::Nee)
+            .then_some(UnreachedLights { count, integrator })
+    }
+
     /// What is wrong with the scene's lights, if anything: no emitter at
     /// all, or none whose front side faces any other surface (some vertex
     /// of another primitive strictly in front of an emitting triangle's
@@ -53,6 +88,10 @@ impl Scene {
             && env.strength > 0.0
             && env.texels.iter().flatten().any(|&c| c > 0.0)
         {
+            return None;
+        }
+        // So does a sun, point or spot light.
+        if self.lights.iter().any(|l| l.emits()) {
             return None;
         }
         let emits = |m: u32| self.materials[m as usize].is_emissive();

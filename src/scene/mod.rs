@@ -18,13 +18,14 @@ pub mod mesh_source;
 pub mod obj;
 pub mod options;
 pub mod ply;
+pub mod punctual;
 pub mod texture;
 
 use camera::Camera;
 use glam::Vec3;
 
 pub use builder::{Origin, SceneBuilder, SceneError};
-pub use light_check::LightWarning;
+pub use light_check::{LightWarning, UnreachedLights};
 pub use material::{Material, Model};
 pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
 
@@ -234,6 +235,8 @@ pub struct Scene {
     /// The light from infinitely far away that rays leaving the scene see
     /// (`None`: they see black).
     pub environment: Option<environment::Environment>,
+    /// Sun, point and spot lights ([`punctual`]).
+    pub lights: Vec<punctual::PunctualLight>,
     /// The scene's objects, for the object_id AOV: what each primitive
     /// belongs to, and their names.
     pub objects: Objects,
@@ -431,6 +434,10 @@ impl Scene {
         // (Scenes without an environment hash as before it existed.)
         if let Some(e) = &self.environment {
             e.hash_into(&mut h);
+        }
+        // (Scenes without punctual lights hash as before they existed.)
+        for l in &self.lights {
+            l.hash_into(&mut h);
         }
         h.digest128()
     }

@@ -168,7 +168,7 @@ impl WavefrontEngine {
             time.time(Stage::Intersect, || intersect::intersect(queue, &ctx));
             time.time(Stage::Shade, || {
                 shade::shade(queue, &ctx);
-                if ctx.lights.environment().is_some() {
+                if ctx.lights.sees_escapes() {
                     shade::shade_escaped(queue, &ctx, depth);
                 }
                 shade::record_aovs(queue, ctx.tables, depth, job.frame.camera.forward());
