@@ -447,6 +447,22 @@ fn transparent_renders_from_the_command_line() {
         assert_eq!(centre[3], 255, "{out}: centre");
         assert!(centre[0] > 20, "{out}: the sphere is lit: {centre:?}");
     }
+    // The environment is hidden from the camera, not just masked: the
+    // EXR's premultiplied colour is black where alpha is 0.
+    run_ok(
+        dir.path(),
+        &[
+            &["visible.toml", "-o", "t.exr", "--transparent"][..],
+            &sizes[..],
+        ]
+        .concat(),
+    );
+    let rgb = read_image(&dir.join("t.exr")).unwrap().rgb;
+    let a = read_exr_layer(&dir.join("t.exr"), "", &["A"])
+        .unwrap()
+        .unwrap();
+    assert_eq!((rgb[0], a[0][0]), ([0.0; 3], 0.0), "corner");
+    assert_eq!(a[6 * 16 + 8][0], 1.0, "centre");
 }
 
 fn scene_text(visible: bool) -> String {
