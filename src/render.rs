@@ -356,6 +356,26 @@ impl RenderSettings {
     }
 }
 
+/// Open the scene file at `path`: a TOML scene, or an asset (glTF, GLB,
+/// PLY; `camera` picks one of a glTF's cameras by name or index), with
+/// the loader's warnings for the caller to show; a file of another format
+/// (an OBJ mesh, pbrt…) is refused with an error that says what it is.
+pub fn open_scene(path: &std::path::Path, camera: Option<&str>) -> Result<(Scene, Vec<String>)> {
+    if crate::scene::asset_scene::is_asset(path) {
+        return Ok(crate::scene::asset_scene::load(path, camera)?);
+    }
+    if camera.is_some() {
+        return Err(Error::Settings(format!(
+            "--camera chooses among a glTF asset's cameras; {} is not one",
+            path.display()
+        )));
+    }
+    if let Some(foreign) = crate::scene::format::foreign_format(path) {
+        return Err(foreign.into());
+    }
+    Ok((Scene::load(path)?, Vec::new()))
+}
+
 /// A scene prepared for one engine and one set of settings, with its pool
 /// of worker threads.
 pub struct Renderer {
@@ -416,6 +436,17 @@ impl Renderer {
             pool,
             engine,
         })
+    }
+
+    /// Render from another camera (at the settings' size) and seed with
+    /// the same prepared scene: the hierarchy, the lights and the thread
+    /// pool are kept, so many views of one scene are built once. Samples
+    /// rendered afterwards are those a new renderer of that camera and
+    /// seed would render, bit for bit.
+    pub fn set_view(&mut self, camera: &crate::scene::camera::Camera, seed: u64) {
+        self.frame.camera = camera.for_resolution(self.settings.width, self.settings.height);
+        self.frame.seed = seed;
+        self.settings.seed = seed;
     }
 
     /// The bounding volume hierarchy the engine traces against.

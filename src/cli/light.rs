@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result};
 use crate::scene::Scene;
-use crate::scene::environment::{DEFAULT_SKY, EnvSource, Environment};
+use crate::scene::environment::{DEFAULT_SKY, EnvSource};
 use clap::Args;
 
 /// `--env`, `--env-strength`, `--env-rotation` (docs/lights.md).
@@ -57,40 +57,17 @@ impl LightArgs {
     /// `--env-strength` and `--env-rotation` alone change the scene's own,
     /// and are refused for a scene without one.
     fn set(&self, scene: &mut Scene) -> Result<()> {
-        let settings = |m: String| Error::Settings(m);
-        let env = match (&self.env, &scene.environment) {
-            (Some(text), old) => Environment::load(
-                &EnvSource::parse(text),
-                self.env_strength.unwrap_or(1.0),
-                self.env_rotation.unwrap_or(0.0),
-                old.as_ref().is_none_or(|e| e.visible),
-            )
-            .map_err(settings)?,
-            (None, Some(old)) => Environment::load(
-                &EnvSource::Constant([0.0; 3]),
-                self.env_strength.unwrap_or(old.strength),
-                self.env_rotation.unwrap_or(old.rotation_deg),
-                old.visible,
-            )
-            .map(|checked| Environment {
-                strength: checked.strength,
-                rotation_deg: checked.rotation_deg,
-                ..old.clone()
-            })
-            .map_err(settings)?,
-            (None, None) if self.env_strength.is_some() || self.env_rotation.is_some() => {
-                return Err(settings(
-                    "--env-strength and --env-rotation change an environment: the scene has none; give one with --env".into(),
-                ));
-            }
-            (None, None) => return Ok(()),
-        };
-        if let Some(path) = &env.file
-            && !scene.sources.contains(path)
-        {
-            scene.sources.push(path.clone());
+        let source = self.env.as_deref().map(EnvSource::parse);
+        let env = crate::scene::environment::overridden(
+            scene.environment.as_ref(),
+            source.as_ref(),
+            self.env_strength,
+            self.env_rotation,
+        )
+        .map_err(Error::Settings)?;
+        if let Some(env) = env {
+            scene.set_environment(env);
         }
-        scene.environment = Some(env);
         Ok(())
     }
 }

@@ -90,23 +90,11 @@ pub(crate) fn load_scene(
     path: &std::path::Path,
     camera: Option<&str>,
 ) -> Result<crate::scene::Scene> {
-    if crate::scene::asset_scene::is_asset(path) {
-        let (scene, warnings) = crate::scene::asset_scene::load(path, camera)?;
-        for w in warnings {
-            eprintln!("warning: {w}");
-        }
-        return Ok(scene);
+    let (scene, warnings) = crate::render::open_scene(path, camera)?;
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
-    if camera.is_some() {
-        return Err(crate::Error::Settings(format!(
-            "--camera chooses among a glTF asset's cameras; {} is not one",
-            path.display()
-        )));
-    }
-    if let Some(foreign) = crate::scene::format::foreign_format(path) {
-        return Err(foreign.into());
-    }
-    Ok(crate::scene::Scene::load(path)?)
+    Ok(scene)
 }
 
 /// Run the command line. Returns the process exit status: 0 when the

@@ -512,7 +512,7 @@ impl Lights {
             shapes.push(([Some(prim), None], power, area));
         }
         let mut total: f64 = shapes.iter().map(|s| s.1).sum();
-        let (lo, hi) = scene_bounds(scene);
+        let (lo, hi) = scene.bounds();
         let largest = lo.abs().max(hi.abs()).max_element();
         lights.far = 4.0 * 3f32.sqrt() * largest + 1.0;
         let r = 0.5 * f64::from((hi - lo).length()).max(1e-3);
@@ -807,29 +807,6 @@ impl Lights {
             by_area
         }
     }
-}
-
-/// The corners of the box around the scene's triangles and spheres (the
-/// origin alone for an empty scene).
-fn scene_bounds(scene: &Scene) -> (glam::Vec3, glam::Vec3) {
-    let (mut lo, mut hi) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
-    let mut first = true;
-    let mut add = |a: glam::Vec3, b: glam::Vec3| {
-        if first {
-            (lo, hi, first) = (a, b, false);
-        } else {
-            (lo, hi) = (lo.min(a), hi.max(b));
-        }
-    };
-    for t in &scene.triangles {
-        for v in t.v {
-            add(v, v);
-        }
-    }
-    for s in &scene.spheres {
-        add(s.center - s.radius, s.center + s.radius);
-    }
-    (lo, hi)
 }
 
 /// Barycentric coordinates `(b1, b2)` (weights of vertices 1 and 2) of a

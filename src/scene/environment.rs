@@ -326,6 +326,46 @@ pub fn from_file(
 /// What [`default_sky`] is, in its [`Environment::source`].
 pub const DEFAULT_SKY: &str = "the default environment (a uniform white sky of radiance 1)";
 
+/// The environment a scene renders with after a caller's overrides (the
+/// render command's `--env`, `--env-strength`, `--env-rotation`; the
+/// Python package's `env=`…): `source` replaces the scene's environment
+/// (keeping its `visible`); `strength` and `rotation` alone change the
+/// scene's own, which a scene without one refuses. `Ok(None)`: nothing
+/// to change. Errors name the flag, for the caller to place.
+pub fn overridden(
+    old: Option<&Environment>,
+    source: Option<&EnvSource>,
+    strength: Option<f32>,
+    rotation: Option<f32>,
+) -> Result<Option<Environment>, String> {
+    match (source, old) {
+        (Some(source), old) => Environment::load(
+            source,
+            strength.unwrap_or(1.0),
+            rotation.unwrap_or(0.0),
+            old.is_none_or(|e| e.visible),
+        )
+        .map(Some),
+        (None, Some(old)) => Environment::load(
+            &EnvSource::Constant([0.0; 3]),
+            strength.unwrap_or(old.strength),
+            rotation.unwrap_or(old.rotation_deg),
+            old.visible,
+        )
+        .map(|checked| {
+            Some(Environment {
+                strength: checked.strength,
+                rotation_deg: checked.rotation_deg,
+                ..old.clone()
+            })
+        }),
+        (None, None) if strength.is_some() || rotation.is_some() => Err(
+            "--env-strength and --env-rotation change an environment: the scene has none; give one with --env".into(),
+        ),
+        (None, None) => Ok(None),
+    }
+}
+
 /// The environment of an asset rendered alone that brings no light of its
 /// own: a uniform white sky of radiance 1, visible — a white furnace, so a
 /// white diffuse surface open to the whole sky is exactly white.

@@ -314,6 +314,40 @@ impl Scene {
         self.options.aov = Some(self.options.aov.unwrap_or_default().with(Aov::Alpha));
     }
 
+    /// The corners of the box around the scene's triangles and spheres
+    /// (the origin alone for an empty scene).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let (mut lo, mut hi) = (Vec3::ZERO, Vec3::ZERO);
+        let mut first = true;
+        let mut add = |a: Vec3, b: Vec3| {
+            if first {
+                (lo, hi, first) = (a, b, false);
+            } else {
+                (lo, hi) = (lo.min(a), hi.max(b));
+            }
+        };
+        for t in &self.triangles {
+            for v in t.v {
+                add(v, v);
+            }
+        }
+        for s in &self.spheres {
+            add(s.center - s.radius, s.center + s.radius);
+        }
+        (lo, hi)
+    }
+
+    /// Light the scene by `env` (replacing its environment), its image
+    /// file counted among the scene's sources.
+    pub fn set_environment(&mut self, env: environment::Environment) {
+        if let Some(path) = &env.file
+            && !self.sources.contains(path)
+        {
+            self.sources.push(path.clone());
+        }
+        self.environment = Some(env);
+    }
+
     /// The largest absolute coordinate of any vertex (at least 1).
     pub fn extent(&self) -> f32 {
         let spheres = self
