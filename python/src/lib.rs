@@ -305,6 +305,7 @@ struct Buffer {
 
 enum Data {
     F32(Vec<f32>),
+    U32(Vec<u32>),
 }
 
 #[pymethods]
@@ -314,6 +315,7 @@ impl Buffer {
         let d = PyDict::new(py);
         let (pointer, typestr) = match &self.data {
             Data::F32(v) => (v.as_ptr() as usize, "<f4"),
+            Data::U32(v) => (v.as_ptr() as usize, "<u4"),
         };
         d.set_item("shape", pyo3::types::PyTuple::new(py, &self.shape)?)?;
         d.set_item("typestr", typestr)?;
@@ -337,6 +339,7 @@ struct Key {
     sampler: &'static str,
     aovs: Vec<&'static str>,
     env: Option<(String, Option<u32>, Option<u32>)>,
+    transparent: bool,
 }
 
 struct State {
@@ -360,6 +363,7 @@ struct Scene {
     spheres: usize,
     sources: Vec<PathBuf>,
     warnings: Vec<String>,
+    objects: Vec<(u32, String)>,
     state: Mutex<State>,
 }
 
@@ -371,6 +375,7 @@ struct Request {
     env: Option<EnvSource>,
     env_strength: Option<f32>,
     env_rotation: Option<f32>,
+    transparent: bool,
     passes: Vec<Range<u32>>,
 }
 
@@ -416,6 +421,9 @@ impl Scene {
             spheres: scene.spheres.len(),
             sources: scene.sources.clone(),
             warnings,
+            objects: (scene.objects.legend())
+                .map(|(id, name)| (id, name.to_string()))
+                .collect(),
             state: Mutex::new(State {
                 scene,
                 cached: None,
@@ -439,6 +447,7 @@ impl Scene {
         env_strength: Option<f32>,
         env_rotation: Option<f32>,
         aovs: &[String],
+        transparent: bool,
         threads: Option<usize>,
     ) -> PyResult<Request> {
         let state = self
@@ -471,8 +480,11 @@ impl Scene {
             None => s.engine,
             Some(n) => Engine::from_name(n).map_err(error)?,
         };
+        // Alpha always: the colour's fourth channel (it changes no bit of
+        // the colour, and costs a count per pixel).
         s.aovs = AovSet::from_names(aovs.iter().map(String::as_str))
-            .map_err(|e| settings_error(format!("aovs: {e}")))?;
+            .map_err(|e| settings_error(format!("aovs: {e}")))?
+            .with(Aov::Alpha);
         s.validate().map_err(error)?;
         let key = Key {
             width: s.width,
@@ -490,6 +502,7 @@ impl Scene {
                     env_rotation.map(f32::to_bits),
                 )
             }),
+            transparent,
         };
         let camera = match camera {
             Some(c) => c.core(s.width, s.height),
@@ -501,6 +514,7 @@ impl Scene {
             env: env.map(EnvSource::parse),
             env_strength,
             env_rotation,
+            transparent,
             passes: passes(spp),
             settings: s,
         })
@@ -516,7 +530,7 @@ fn prepare<'a>(state: &'a mut State, request: &Request) -> wavetrace::Result<&'a
         .is_none_or(|(key, _)| *key != request.key)
     {
         state.cached = None;
-        let renderer = if request.key.env.is_some() {
+        let renderer = if request.key.env.is_some() || request.transparent {
             let mut scene = state.scene.clone();
             let env = overridden(
                 scene.environment.as_ref(),
@@ -527,6 +541,9 @@ fn prepare<'a>(state: &'a mut State, request: &Request) -> wavetrace::Result<&'a
             .map_err(wavetrace::Error::Settings)?;
             if let Some(env) = env {
                 scene.set_environment(env);
+            }
+            if request.transparent {
+                scene.make_transparent();
             }
             Renderer::new(&scene, &request.settings)?
         } else {
@@ -634,12 +651,47 @@ fn report(callback: &Bound<'_, PyAny>, before: u32, now: u32, total: u32) -> PyR
     Ok(())
 }
 
-fn image(film: &Film) -> Vec<f32> {
+/// The colour and its alpha (the fraction of the pixel's camera rays that
+/// hit something), and the other AOVs, as the arrays' buffers.
+fn buffers(film: &Film) -> Vec<(&'static str, Buffer)> {
+    let (w, h) = (film.width as usize, film.height as usize);
+    let shape = |channels: usize| match channels {
+        1 => vec![h, w],
+        c => vec![h, w, c],
+    };
+    let mut aovs = film.aov_images();
+    let alpha = aovs
+        .iter()
+        .position(|(aov, _)| *aov == Aov::Alpha)
+        .map(|k| aovs.remove(k).1);
     let mut rgba = Vec::with_capacity(film.sums.len() * 4);
-    for p in film.to_rgb() {
-        rgba.extend_from_slice(&[p[0], p[1], p[2], 1.0]);
+    for (i, p) in film.to_rgb().into_iter().enumerate() {
+        let a = alpha.as_ref().map_or(1.0, |alpha| alpha[i][0]);
+        rgba.extend_from_slice(&[p[0], p[1], p[2], a]);
     }
-    rgba
+    let mut out = vec![(
+        "color",
+        Buffer {
+            data: Data::F32(rgba),
+            shape: shape(4),
+        },
+    )];
+    for (aov, pixels) in aovs {
+        let (data, channels) = match aov {
+            Aov::Depth | Aov::ZDepth => (Data::F32(pixels.iter().map(|p| p[0]).collect()), 1),
+            // Exact: the film holds ids below 2²⁴.
+            Aov::ObjectId => (Data::U32(pixels.iter().map(|p| p[0] as u32).collect()), 1),
+            _ => (Data::F32(pixels.into_iter().flatten().collect()), 3),
+        };
+        out.push((
+            aov.name(),
+            Buffer {
+                data,
+                shape: shape(channels),
+            },
+        ));
+    }
+    out
 }
 
 #[pymethods]
@@ -692,9 +744,16 @@ impl Scene {
         self.warnings.clone()
     }
 
+    /// The object-id legend: `(id, name)` for every object (ids from 1;
+    /// 0 is the background in `object_id` images).
+    #[getter]
+    fn objects(&self) -> Vec<(u32, String)> {
+        self.objects.clone()
+    }
+
     /// Render and return `{name: Buffer}` for the Python side to view as
     /// arrays. See `wavetrace.Scene.render` for the arguments.
-    #[pyo3(signature = (camera = None, spp = 16, seed = 0, width = None, height = None, integrator = None, sampler = None, max_depth = None, engine = None, env = None, env_strength = None, env_rotation = None, aovs = Vec::new(), threads = None, progress = None))]
+    #[pyo3(signature = (camera = None, spp = 16, seed = 0, width = None, height = None, integrator = None, sampler = None, max_depth = None, engine = None, env = None, env_strength = None, env_rotation = None, aovs = Vec::new(), transparent = false, threads = None, progress = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -712,6 +771,7 @@ impl Scene {
         env_strength: Option<f32>,
         env_rotation: Option<f32>,
         aovs: Vec<String>,
+        transparent: bool,
         threads: Option<usize>,
         progress: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
@@ -729,26 +789,13 @@ impl Scene {
             env_strength,
             env_rotation,
             &aovs,
+            transparent,
             threads,
         )?;
         let film = render_waiting(py, self, &request, progress.as_ref())?;
-        let (w, h) = (film.width as usize, film.height as usize);
         let out = PyDict::new(py);
-        let buffer = |data: Data, channels: usize| {
-            let shape = if channels == 1 {
-                vec![h, w]
-            } else {
-                vec![h, w, channels]
-            };
-            Buffer { data, shape }
-        };
-        out.set_item("color", buffer(Data::F32(image(&film)), 4))?;
-        for (aov, pixels) in film.aov_images() {
-            let (data, channels) = match aov {
-                Aov::Depth => (pixels.iter().map(|p| p[0]).collect(), 1),
-                _ => (pixels.into_iter().flatten().collect(), 3),
-            };
-            out.set_item(aov.name(), buffer(Data::F32(data), channels))?;
+        for (name, buffer) in py.detach(|| buffers(&film)) {
+            out.set_item(name, buffer)?;
         }
         Ok(out)
     }

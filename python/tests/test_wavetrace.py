@@ -325,3 +325,29 @@ def test_scene_properties():
     assert s.name == "textured"
     assert Path(s.sources[0]).name == "textured.glb"
     assert s.resolution[1] == 480
+
+
+def test_alpha_object_ids_and_zdepth_are_the_command_lines(tmp_path):
+    scene = SCENES / "asset-sky.toml"
+    exr = tmp_path / "t.exr"
+    args = ["--spp", "4", "--width", "80", "--height", "60", "--transparent", "--aov", "zdepth,object_id"]
+    subprocess.run([cli(), str(scene)] + args + ["--out", str(exr)], check=True, capture_output=True)
+    layers = read_exr(exr)
+    s = wavetrace.load(scene)
+    out = s.render(spp=4, width=80, height=60, transparent=True, aovs=["zdepth", "object_id"])
+    rgba = layers["RGBA"] if "RGBA" in layers else np.dstack([layers["RGB"], layers["A"]])
+    assert np.array_equal(out["color"], rgba)
+    alpha = out["color"][..., 3]
+    assert 0 < alpha.mean() < 1 and alpha.min() == 0 and alpha.max() == 1
+    assert np.array_equal(out["zdepth"], layers["zdepth.Z"])
+    ids = out["object_id"]
+    assert ids.dtype == np.uint32
+    assert np.array_equal(ids, layers["object_id.id"].astype(np.uint32))
+    assert set(np.unique(ids)) - {0} <= set(s.objects)
+    # The background: no object, no alpha, black where transparent.
+    assert (alpha[ids == 0] < 1).all()
+    assert (out["color"][alpha == 0][:, :3] == 0).all()
+    # Visible, the sky is seen, but alpha still counts the hits.
+    seen = s.render(spp=4, width=80, height=60)["color"]
+    assert np.array_equal(seen[..., 3], alpha)
+    assert seen[alpha == 0][:, :3].min() > 0

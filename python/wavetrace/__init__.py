@@ -94,6 +94,12 @@ class Scene:
         return self._native.sources
 
     @property
+    def objects(self) -> Dict[int, str]:
+        """The object-id legend ``{id: name}`` of ``object_id`` images: one
+        object per scene-file entry or glTF node, from 1 (0: background)."""
+        return dict(self._native.objects)
+
+    @property
     def warnings(self) -> list:
         """What the loader had to say (ignored extensions, skipped lines)."""
         return self._native.warnings
@@ -114,6 +120,7 @@ class Scene:
         env_strength: Optional[float] = None,
         env_rotation: Optional[float] = None,
         aovs: Iterable[str] = (),
+        transparent: bool = False,
         threads: Optional[int] = None,
         progress: Optional[Union[Callable[[int, int], Any], Any]] = None,
     ) -> Dict[str, np.ndarray]:
@@ -126,15 +133,20 @@ class Scene:
         to every core. ``env`` lights the scene by an equirectangular
         ``.exr``/``.hdr`` file or an ``(r, g, b)`` radiance, replacing its
         own environment (``env_strength``, ``env_rotation`` in degrees about
-        +Y). ``aovs`` asks for auxiliary images: ``"albedo"``,
-        ``"normal"``, ``"depth"``, ``"variance"``. ``progress`` is called
+        +Y); ``transparent=True`` hides it from camera rays (black
+        background; it still lights the scene). ``aovs`` asks for auxiliary
+        images: ``"albedo"``, ``"normal"``, ``"depth"`` (distance along the
+        ray), ``"zdepth"`` (along the camera's axis), ``"object_id"``,
+        ``"variance"``. ``progress`` is called
         as ``progress(done, total)`` (samples per pixel) between sample
         passes, or, for an object with ``update`` such as a ``tqdm`` bar,
         ``progress.update(n)``.
 
-        Returns ``{"color": H x W x 4 float32 (linear RGB, alpha), and one
-        array per AOV}``: ``depth`` H x W, the others H x W x 3; row 0 is
-        the image's top. The arrays are read-only views of the render's
+        Returns ``{"color": H x W x 4 float32 (linear RGB, and alpha: the
+        fraction of the pixel's camera rays that hit something), and one
+        array per AOV}``: ``depth``/``zdepth`` H x W float32,
+        ``object_id`` H x W uint32 (see :attr:`objects`), the others
+        H x W x 3 float32; row 0 is the image's top. The arrays are read-only views of the render's
         memory (no copy); ``.copy()`` one to write into it.
         """
         native = self._native.render(
@@ -151,6 +163,7 @@ class Scene:
             env_strength=env_strength,
             env_rotation=env_rotation,
             aovs=list(aovs),
+            transparent=transparent,
             threads=threads,
             progress=progress,
         )

@@ -49,6 +49,7 @@ class Scene:
     spheres: int
     sources: List[str]
     warnings: List[str]
+    objects: List[Tuple[int, str]]
     def render(
         self,
         camera: Optional[Camera] = None,
@@ -64,6 +65,7 @@ class Scene:
         env_strength: Optional[float] = None,
         env_rotation: Optional[float] = None,
         aovs: List[str] = ...,
+        transparent: bool = False,
         threads: Optional[int] = None,
         progress: Optional[Callable[..., Any]] = None,
     ) -> Dict[str, Buffer]: ...
