@@ -559,7 +559,7 @@ fn prepare<'a>(state: &'a mut State, request: &Request) -> wavetrace::Result<&'a
 /// What the waiting thread hears from the rendering one.
 enum Event {
     Pass,
-    Done(Option<wavetrace::Result<Film>>),
+    Done(Box<Option<wavetrace::Result<Film>>>),
 }
 
 /// Render `request`'s passes on a thread of their own while this one
@@ -591,14 +591,14 @@ fn render_waiting(
             }
             Some(film)
         });
-        let _ = tx.send(Event::Done(result.transpose()));
+        let _ = tx.send(Event::Done(Box::new(result.transpose())));
     };
     let wait = |rx: mpsc::Receiver<Event>| -> PyResult<Option<wavetrace::Result<Film>>> {
         let mut reported = 0;
         loop {
             let event = rx.recv_timeout(Duration::from_millis(50));
             let finished = match event {
-                Ok(Event::Done(result)) => Some(result),
+                Ok(Event::Done(result)) => Some(*result),
                 Err(mpsc::RecvTimeoutError::Disconnected) => Some(None),
                 _ => None,
             };
