@@ -740,9 +740,11 @@ fn tangents_are_generated_where_a_normal_texture_needs_them() {
     for t in &m.tangents {
         let v = Vec3::new(t[0], t[1], t[2]);
         // MikkTSpace's tangent follows increasing u (+x); v runs along -y,
-        // so the bitangent w · (n × t) = w · (+y) points along -y: w = -1.
+        // and the bitangent w · (n × t) = w · (+y) points towards
+        // decreasing v (the image's up, glTF's +Y of a normal texture),
+        // along +y: w = 1.
         assert!((v - Vec3::X).length() < 1e-5, "{t:?}");
-        assert_eq!(t[3], -1.0, "{t:?}");
+        assert_eq!(t[3], 1.0, "{t:?}");
     }
     assert_eq!(a.materials[0].normal_texture.unwrap().scale, 0.5);
     // Without the normal texture, no tangents are made.

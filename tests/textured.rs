@@ -124,11 +124,34 @@ impl Gltf {
         triangles: &[[u32; 3]],
         material: usize,
     ) -> usize {
+        self.mesh_with(positions, uv, colours, (None, None), triangles, material)
+    }
+
+    /// [`mesh`](Self::mesh) with vertex normals and tangents where given.
+    fn mesh_with(
+        &mut self,
+        positions: &[Vec3],
+        uv: &[[f32; 2]],
+        colours: Option<&[[f32; 4]]>,
+        (normals, tangents): (Option<&[Vec3]>, Option<&[[f32; 4]]>),
+        triangles: &[[u32; 3]],
+        material: usize,
+    ) -> usize {
         let p: Vec<f32> = positions.iter().flat_map(|v| v.to_array()).collect();
         let p = self.floats(&p, 3);
         let t: Vec<f32> = uv.iter().flatten().copied().collect();
         let t = self.floats(&t, 2);
         let mut attributes = format!(r#""POSITION": {p}, "TEXCOORD_0": {t}"#);
+        if let Some(n) = normals {
+            let n: Vec<f32> = n.iter().flat_map(|v| v.to_array()).collect();
+            let n = self.floats(&n, 3);
+            attributes += &format!(r#", "NORMAL": {n}"#);
+        }
+        if let Some(t) = tangents {
+            let t: Vec<f32> = t.iter().flatten().copied().collect();
+            let t = self.floats(&t, 4);
+            attributes += &format!(r#", "TANGENT": {t}"#);
+        }
         if let Some(c) = colours {
             let c: Vec<f32> = c.iter().flatten().copied().collect();
             let c = self.floats(&c, 4);
@@ -766,6 +789,81 @@ fn an_emissive_texture_shines_where_its_texture_coordinates_put_it() {
     }
 }
 
+/// An OBJ asset with texture coordinates (`vt`, whose `v` runs up) and an
+/// MTL whose `map_Ke` (after an option) and `map_Kd` name a PNG beside
+/// it: the wall of [`emissive_wall`] as OBJ + MTL + PNG (8 × 8, the four
+/// texels as quarters, bilinear), placed by a TOML scene with that wall's
+/// camera, shows each texel × `Ke` where the glTF wall does, in both
+/// engines. An image that is not there is refused naming the MTL's line.
+#[test]
+fn an_obj_asset_reads_its_texture_coordinates_and_mtl_images() {
+    let dir = TempDir::new("obj-maps");
+    let quarter = |i: u32, j: u32| WALL_TEXELS[(j / 4 * 2 + i / 4) as usize];
+    let png: Vec<u8> = (0..64).flat_map(|k| quarter(k % 8, k / 8)).collect();
+    image::RgbaImage::from_raw(8, 8, png)
+        .unwrap()
+        .save(dir.join("wall.png"))
+        .unwrap();
+    let obj = "mtllib wall.mtl\nv -1 0.1 -1\nv 1 0.1 -1\nv 1 1.1 -1\nv -1 1.1 -1\n\
+               vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl wall\nf 1/1 2/2 3/3 4/4\n";
+    std::fs::write(dir.join("wall.obj"), obj).unwrap();
+    let ke: [f32; 3] = std::array::from_fn(|c| WALL_FACTOR[c] * WALL_STRENGTH);
+    let mtl = |image: &str| {
+        format!(
+            "newmtl wall\nKd 0 0 0\nKe {:?} {:?} {:?}\nmap_Kd wall.png\nmap_Ke -bm 1 {image}\n",
+            ke[0], ke[1], ke[2]
+        )
+    };
+    std::fs::write(dir.join("wall.mtl"), mtl("wall.png")).unwrap();
+    let glb = scene_of(&dir, "wall.glb", &emissive_wall());
+    let c = &glb.camera;
+    let v = |p: Vec3| format!("[{:?}, {:?}, {:?}]", p.x, p.y, p.z);
+    let toml = format!(
+        "[camera]\nposition = {}\nforward = {}\nup = {}\nfocal_length_px = {:?}\nwidth = {}\nheight = {}\n\n\
+         [integrator]\nmax_depth = 1\n\n[[asset]]\nfile = \"wall.obj\"\n",
+        v(c.position),
+        v(c.forward),
+        v(c.up),
+        c.focal_length_px,
+        c.width,
+        c.height
+    );
+    std::fs::write(dir.join("wall.toml"), &toml).unwrap();
+    let scene = Scene::load(&dir.join("wall.toml")).unwrap();
+    assert_eq!(scene.texturing.textures.len(), 2, "map_Kd and map_Ke");
+    let want: Vec<[f32; 3]> = WALL_TEXELS
+        .iter()
+        .map(|t| std::array::from_fn(|c| ke[c] * srgb(t[c])))
+        .collect();
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        let (w, h) = (64, 48);
+        let mut s = settings(&scene, w, h, 8);
+        (s.engine, s.max_depth) = (engine, 1);
+        let rgb = render(&scene, &s).to_rgb();
+        let mut found = [(0usize, 0.0f32, 0.0f32); 4];
+        for (i, p) in rgb.iter().enumerate() {
+            let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+            let close = |a: &[f32; 3]| (0..3).all(|c| (p[c] - a[c]).abs() <= 1e-5 * a[c].max(1.0));
+            if let Some(k) = want.iter().position(close) {
+                let f = &mut found[k];
+                (f.0, f.1, f.2) = (f.0 + 1, f.1 + x, f.2 + y);
+            }
+        }
+        let at = found.map(|(n, x, y)| (n, x / n.max(1) as f32, y / n.max(1) as f32));
+        for (k, (n, ..)) in at.iter().enumerate() {
+            assert!(*n >= 20, "{engine:?}: texel {k} in {n} pixels only: {at:?}");
+        }
+        assert!(at[0].1 < at[1].1 && at[2].1 < at[3].1, "{engine:?}: {at:?}");
+        assert!(at[0].2 < at[2].2 && at[1].2 < at[3].2, "{engine:?}: {at:?}");
+    }
+    std::fs::write(dir.join("wall.mtl"), mtl("missing.png")).unwrap();
+    let e = Scene::load(&dir.join("wall.toml")).unwrap_err().to_string();
+    assert!(
+        e.contains("wall.mtl") && e.contains("line 5") && e.contains("missing.png"),
+        "{e}"
+    );
+}
+
 /// Per pixel and channel of the wall scene, the mean over `K` seeds of
 /// `spp`-sample images of estimator `integrator`, and the squared
 /// standard error of that mean.
@@ -825,6 +923,80 @@ fn light_sampling_weighs_an_emissive_texture_as_scattered_rays_see_it() {
 }
 
 // ---------------------------------------------------------------------------
+// Normal textures
+
+/// The 1 × 1 normal texture's texel: the tangent-space normal
+/// (0.4, 0.3, 0.866) encoded as `(n + 1)/2` in 8 bits.
+const TILT: [u8; 4] = [179, 166, 238, 255];
+
+/// [`checker_quad`]'s quad (y = 0, normals +y, `u` along +x, `v` along +z)
+/// white, with the normal texture [`TILT`] of scale `scale`, and vertex
+/// tangents +x of handedness `w` (`None`: none in the file, so they are
+/// generated), seen from straight above, lit by the default sky.
+fn tilted_quad(w: Option<f32>, scale: f32) -> Vec<u8> {
+    let mut g = Gltf::default();
+    let tex = g.texture(1, 1, TILT.to_vec(), 9728);
+    let extra: &'static str = Box::leak(format!(r#", "scale": {scale:?}"#).into_boxed_str());
+    let m = g.material(Mat {
+        normal_texture: Some((tex, extra)),
+        ..Mat::default()
+    });
+    let tangents = w.map(|w| [[1.0, 0.0, 0.0, w]; 4]);
+    let quad = g.mesh_with(
+        &[
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+        ],
+        &[[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+        None,
+        (Some(&[Vec3::Y; 4][..]), tangents.as_ref().map(|t| &t[..])),
+        &[[0, 1, 2], [0, 2, 3]],
+        m,
+    );
+    g.node(quad, Vec3::ZERO, Quat::IDENTITY);
+    let down = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    g.camera(Vec3::new(0.0, 2.0, 0.0), down, 60f32.to_radians(), 1.0);
+    g.glb()
+}
+
+/// A normal texture of a known tilt gives the shading normal (the normal
+/// AOV, in both engines) the direction glTF 2.0 defines: `(2c − 1)`, X
+/// and Y times `scale`, in the frame tangent `t` = +x, bitangent
+/// `w · (n × t)`, normal `n` = +y. The file's tangents of either
+/// handedness turn the tilt's Y part to −z (w = 1) or +z (w = −1);
+/// generated ones (MikkTSpace) give the bitangent towards decreasing `v`,
+/// the image's up (w = 1 here), as glTF's "+Y up" reads it.
+#[test]
+fn a_normal_texture_bends_the_shading_normal_as_its_tangent_frame_says() {
+    use wavetrace::scene::{Aov, AovSet};
+    let dir = TempDir::new("normal-map");
+    let c = TILT.map(|b| 2.0 * (b as f32 / 255.0) - 1.0);
+    for (w, scale, bitangent) in [
+        (Some(1.0), 1.0, Vec3::NEG_Z),
+        (Some(-1.0), 1.0, Vec3::Z),
+        (None, 0.5, Vec3::NEG_Z),
+    ] {
+        let want = (Vec3::X * c[0] * scale + bitangent * c[1] * scale + Vec3::Y * c[2]).normalize();
+        let scene = scene_of(&dir, "tilt.glb", &tilted_quad(w, scale));
+        for engine in [Engine::Reference, Engine::Wavefront] {
+            let mut s = settings(&scene, 16, 16, 4);
+            (s.engine, s.aovs) = (engine, AovSet::of(&[Aov::Normal]));
+            let film = render(&scene, &s);
+            let (_, normals) = film.aov_images().into_iter().next().unwrap();
+            for (x, y) in [(8, 8), (4, 5), (11, 10)] {
+                let got = Vec3::from(normals[y * 16 + x]);
+                assert!(
+                    (got - want).length() < 1e-5,
+                    "w {w:?}, scale {scale}, {engine:?}: pixel ({x}, {y}) has {got}, not {want}"
+                );
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
 // Both engines, and reproducibility
 
 /// The two engines trace the same paths, and differ by the order of
@@ -839,6 +1011,7 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
         ("mask.glb", leaf(MASK, 1.0)),
         ("blend.glb", leaf(BLEND, 0.6)),
         ("wall.glb", emissive_wall()),
+        ("tilt.glb", tilted_quad(None, 0.5)),
     ] {
         let scene = scene_of(&dir, name, &bytes);
         for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
@@ -871,6 +1044,7 @@ fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
         ("textured.glb", shipped_asset()),
         ("blend.glb", leaf(BLEND, 0.6)),
         ("wall.glb", emissive_wall()),
+        ("tilt.glb", tilted_quad(Some(-1.0), 0.8)),
     ] {
         same_whatever_threads_batches_and_lanes(&scene_of(&dir, name, &bytes), name);
     }
@@ -932,6 +1106,79 @@ fn a_textured_image_is_the_same_in_passes_and_shards() {
             std::fs::read(dir.join(other)).unwrap() == whole,
             "{other} differs from the whole render"
         );
+    }
+}
+
+/// An image in a buffer view without a `mimeType` (the specification
+/// requires one) is refused naming it: the `gltf` crate's own lookup
+/// unwraps it (a panic, which tests/fuzz.rs-style mutations found).
+#[test]
+fn an_image_in_a_buffer_view_without_a_mime_type_is_refused() {
+    let glb = checker_quad();
+    let text = r#""mimeType": "image/png""#;
+    let at = glb
+        .windows(text.len())
+        .position(|w| w == text.as_bytes())
+        .unwrap();
+    let mut bad = glb.clone();
+    // The same length: the key renamed, so the image has no mimeType.
+    bad[at..at + text.len()].copy_from_slice(br#""mimeTypX": "image/png""#);
+    let e = wavetrace::scene::gltf::read(&bad, "bad.glb", None).unwrap_err();
+    assert_eq!(e.at, "images[0]", "{e}");
+    assert!(e.message.contains("mimeType"), "{e}");
+    assert!(wavetrace::scene::gltf::read(&glb, "good.glb", None).is_ok());
+}
+
+// ---------------------------------------------------------------------------
+// --stats
+
+/// `--stats` counts an asset's meshes once and its instances each time:
+/// one cube (12 triangles) placed by three nodes, in a 4 × 4 texture, is 1
+/// mesh, 3 instances, 12 unique and 36 instanced triangles (the scene's
+/// 36), 1 texture of 64 bytes.
+#[test]
+fn stats_count_meshes_instances_triangles_and_textures() {
+    let dir = TempDir::new("stats");
+    let mut g = Gltf::default();
+    let tex = g.texture(4, 4, checker(4, 4, 2, [255; 4], [0, 0, 0, 255]), 9728);
+    let m = g.material(Mat {
+        base_texture: Some((tex, "")),
+        ..Mat::default()
+    });
+    let cube = g.cube(0.5, m);
+    for x in [-1.0, 0.0, 1.0] {
+        g.node(cube, Vec3::new(x, 0.0, 0.0), Quat::IDENTITY);
+    }
+    std::fs::write(dir.join("cubes.glb"), g.glb()).unwrap();
+    common::run_ok(
+        &dir,
+        &[
+            "render",
+            "cubes.glb",
+            "--width",
+            "8",
+            "--height",
+            "6",
+            "--spp",
+            "1",
+            "-o",
+            "c.png",
+            "--stats",
+            "s.json",
+        ],
+    );
+    let text = std::fs::read_to_string(dir.join("s.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for (field, want) in [
+        ("triangles", 36),
+        ("meshes", 1),
+        ("instances", 3),
+        ("unique_triangles", 12),
+        ("instanced_triangles", 36),
+        ("textures", 1),
+        ("texture_bytes", 64),
+    ] {
+        assert_eq!(json[field], want, "{field} in {text}");
     }
 }
 

@@ -815,6 +815,14 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         partial_images: report.partial_images,
         output,
         triangles: job.scene.triangles.len(),
+        meshes: job.scene.assets.meshes,
+        instances: job.scene.assets.instances,
+        unique_triangles: job.scene.assets.unique_triangles,
+        instanced_triangles: job.scene.assets.instanced_triangles,
+        textures: job.scene.texturing.textures.len(),
+        texture_bytes: (job.scene.texturing.textures.iter())
+            .map(crate::scene::texture::Texture::bytes)
+            .sum(),
         bvh_nodes: renderer.bvh().node_count(),
         bvh_first_packs: renderer.bvh().first_pack_count(),
         packet_first_triangles: renderer.bvh().packet_plan().map(|p| p.0),

@@ -100,6 +100,18 @@ pub struct RenderStats {
     pub partial_images: u32,
     /// Triangles in the scene.
     pub triangles: usize,
+    /// Meshes of the assets placed (glTF, PLY, OBJ), each counted once.
+    pub meshes: usize,
+    /// Placements of those meshes.
+    pub instances: usize,
+    /// The assets' triangles counting each mesh once.
+    pub unique_triangles: usize,
+    /// The assets' triangles counting each instance (flattened).
+    pub instanced_triangles: usize,
+    /// Textures the materials read.
+    pub textures: usize,
+    /// Memory the decoded textures take, in bytes.
+    pub texture_bytes: usize,
     /// Inner nodes of the bounding volume hierarchy (0 without one).
     pub bvh_nodes: usize,
     /// Packs of triangles every ray tests before the hierarchy's walk: the

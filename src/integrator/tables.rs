@@ -90,6 +90,13 @@ pub struct Tables {
     /// Whether some material is not [`Coverage::Opaque`]: hits are then
     /// tested for cut-outs ([`Tables::passes`]).
     cutouts: bool,
+    /// Triangles' vertex tangents ([`Scene::texturing`]), or empty (no
+    /// normal textures to read).
+    tangents: Vec<[[f32; 4]; 3]>,
+    /// Whether some material has a normal texture and some triangle
+    /// tangents: shading normals are then bent per hit
+    /// ([`Tables::shading_normal`]).
+    normal_maps: bool,
     /// Whether some material's emission is textured
     /// ([`Maps::emissive`](crate::scene::material::Maps::emissive)): its
     /// radiance is looked up per hit and per light sample
@@ -178,6 +185,13 @@ impl Tables {
             cutouts: (scene.materials.iter()).any(|m| m.coverage != Coverage::Opaque),
             emissive_maps: (scene.materials.iter()).any(|m| m.maps.emissive.is_some()),
             objects: scene.objects.of_primitive.clone(),
+            tangents: match (scene.materials.iter()).any(|m| m.maps.normal.is_some()) {
+                true => scene.texturing.tangents.clone(),
+                false => Vec::new(),
+            },
+            normal_maps: !scene.texturing.tangents.is_empty()
+                && !scene.texturing.uv.is_empty()
+                && (scene.materials.iter()).any(|m| m.maps.normal.is_some()),
         }
     }
 
@@ -331,10 +345,11 @@ impl Tables {
         ])
     }
 
-    /// Whether some triangles have vertex normals.
+    /// Whether some triangles have a shading normal of their own: vertex
+    /// normals, or a normal texture.
     #[inline(always)]
     pub fn has_smooth(&self) -> bool {
-        !self.smooth.is_empty()
+        !self.smooth.is_empty() || self.normal_maps
     }
 
     /// The front shading normals of eight lanes at their hit points `p`:
@@ -343,7 +358,7 @@ impl Tables {
     /// through [`Scene::shading_normal`]), else the front normals `front`.
     #[inline(always)]
     pub fn shading_normals(&self, prims: &[usize; 8], front: Vec3x8, p: Vec3x8) -> Vec3x8 {
-        if self.smooth.is_empty() {
+        if !self.has_smooth() {
             return front;
         }
         let (f, p) = (lanes3(front), lanes3(p));
@@ -354,8 +369,70 @@ impl Tables {
     /// one lane: a smooth triangle's vertex normals interpolated by
     /// [`interpolate_normal`] (as [`Scene::shading_normal`] has it), or
     /// `None` (the front normal `front` shades).
+    ///
+    /// Where the triangle's material has a normal texture and the triangle
+    /// tangents, that normal (or `front`) bent by the texture
+    /// (`mapped_normal`).
     #[inline(always)]
     pub fn shading_normal(&self, prim: usize, front: V3<f32>, p: V3<f32>) -> Option<V3<f32>> {
+        let smooth = self.vertex_normal(prim, front, p);
+        if !self.normal_maps {
+            return smooth;
+        }
+        self.mapped_normal(prim, (front, smooth.unwrap_or(front)), p)
+            .or(smooth)
+    }
+
+    /// The normal texture of primitive `prim`'s material, read at its
+    /// point `p`, bending the front shading normal `n` (a triangle's
+    /// geometric front normal `front`, or its interpolated vertex
+    /// normals), as glTF 2.0 defines it: the texel's RGB `c` (linear) is
+    /// the tangent-space normal `(2c − 1)` with X and Y times the texture's
+    /// `scale`, in the frame of the tangent `t` (the vertex tangents
+    /// interpolated at `p`, made orthogonal to `n`), the bitangent
+    /// `w · (n × t)` and `n`; normalised. `None` where there is nothing to
+    /// bend (no texture, no tangents) or the result is degenerate or turns
+    /// below the geometric surface.
+    #[inline]
+    fn mapped_normal(
+        &self,
+        prim: usize,
+        (front, n): (V3<f32>, V3<f32>),
+        p: V3<f32>,
+    ) -> Option<V3<f32>> {
+        let m = &self.materials[*self.material_of.get(prim)? as usize];
+        let map = m.maps.normal.as_ref()?;
+        let tangents = self.tangents.get(prim)?;
+        let (v, _) = self.uv.get(prim)?;
+        let p = glam::Vec3::from(p);
+        let b = barycentric(*v, p);
+        let t = (0..3).fold(glam::Vec3::ZERO, |s, k| {
+            s + glam::Vec3::new(tangents[k][0], tangents[k][1], tangents[k][2]) * b[k]
+        });
+        let n = glam::Vec3::from(n);
+        let t = (t - n * n.dot(t)).normalize_or_zero();
+        if t == glam::Vec3::ZERO {
+            return None;
+        }
+        let w = if tangents[0][3] < 0.0 { -1.0 } else { 1.0 };
+        let bitangent = n.cross(t) * w;
+        let uv = self.texcoords(prim, V3::from(p));
+        let at = map.transform.apply(uv[(map.tex_coord as usize).min(1)]);
+        let c = self.textures[map.texture as usize].sample(map.sampler, at[0], at[1]);
+        let (x, y, z) = (
+            (2.0 * c[0] - 1.0) * map.scale,
+            (2.0 * c[1] - 1.0) * map.scale,
+            2.0 * c[2] - 1.0,
+        );
+        let bent = (t * x + bitangent * y + n * z).normalize_or_zero();
+        let above = bent.dot(glam::Vec3::from(front)) > 0.0;
+        (above && bent.is_finite()).then(|| V3::from(bent))
+    }
+
+    /// A smooth triangle's front shading normal from its vertex normals
+    /// ([`shading_normal`](Self::shading_normal) without normal textures).
+    #[inline(always)]
+    fn vertex_normal(&self, prim: usize, front: V3<f32>, p: V3<f32>) -> Option<V3<f32>> {
         let (v, n) = self.smooth.get(prim)?;
         if *n == [glam::Vec3::ZERO; 3] {
             return None;

@@ -12,9 +12,11 @@
 //! emissive texture as [`Maps::emissive`] (emission looked up per hit and
 //! per light sample; the material's constant emission is the factor ×
 //! the texture's mean, what light sampling picks emitters by). Not yet
-//! evaluated per hit: normal textures and `KHR_materials_transmission`,
-//! which, at `transmission ≥ ½`, renders as [`Model::Glass`] of the
-//! material's index (the base colour texture as its mean).
+//! evaluated per hit: `KHR_materials_transmission`, which, at
+//! `transmission ≥ ½`, renders as [`Model::Glass`] of the material's index
+//! (the base colour texture as its mean). Normal textures bend the
+//! shading normal ([`Maps::normal`]) where the mesh has tangents (the
+//! file's, or generated).
 //!
 //! **Defaults.** Without a camera in the file: one looking at the centre
 //! of the bounds from the direction [`DEFAULT_VIEW`] (front, right, above;
@@ -115,6 +117,7 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
         out.maps.emissive = Some(scene_ref(t));
         out.maps.emissive_factor = Vec3::from(m.emissive).max(Vec3::ZERO);
     }
+    out.maps.normal = m.normal_texture.map(scene_ref);
     if m.transmission >= 0.5 && m.ior > 0.0 {
         out.model = Model::Glass;
         out.ior = m.ior;
@@ -164,6 +167,7 @@ pub fn place(
     for file in &asset.sources {
         b.source(file);
     }
+    b.count_asset(asset);
     let first = b.materials().len() as u32;
     let first_texture = b.textures(&asset.textures);
     for m in &asset.materials {

@@ -170,6 +170,9 @@ pub struct SceneBuilder {
     /// Vertex colours of the triangles that have them, and white for the
     /// ones before them; filled up the same way.
     colours: Vec<[[f32; 4]; 3]>,
+    /// World-space vertex tangents of the triangles that have them, and
+    /// zeros for the ones before them; filled up the same way.
+    tangents: Vec<[[f32; 4]; 3]>,
     /// The images materials' maps refer to.
     textures: Vec<Texture>,
     spheres: Vec<Sphere>,
@@ -185,6 +188,7 @@ pub struct SceneBuilder {
     /// The object id of every triangle, and of every sphere.
     triangle_objects: Vec<u32>,
     sphere_objects: Vec<u32>,
+    assets: super::AssetCounts,
 }
 
 impl SceneBuilder {
@@ -199,6 +203,7 @@ impl SceneBuilder {
             vertex_normals: Vec::new(),
             uv: Vec::new(),
             colours: Vec::new(),
+            tangents: Vec::new(),
             textures: Vec::new(),
             spheres: Vec::new(),
             max_depth: 1,
@@ -210,6 +215,7 @@ impl SceneBuilder {
             object: 0,
             triangle_objects: Vec::new(),
             sphere_objects: Vec::new(),
+            assets: super::AssetCounts::default(),
         }
     }
 
@@ -244,6 +250,16 @@ impl SceneBuilder {
         let first = self.textures.len() as u32;
         self.textures.extend_from_slice(textures);
         first
+    }
+
+    /// Counts an asset's meshes, instances and triangles (before
+    /// flattening) in the scene's [`AssetCounts`](super::AssetCounts).
+    pub fn count_asset(&mut self, asset: &super::asset::Asset) {
+        let a = &mut self.assets;
+        a.meshes += asset.meshes.len();
+        a.instances += asset.instances.len();
+        a.unique_triangles += asset.unique_triangles();
+        a.instanced_triangles += asset.instanced_triangles();
     }
 
     /// The materials so far.
@@ -436,6 +452,16 @@ impl SceneBuilder {
             .iter()
             .map(|n| (normal_matrix * *n).try_normalize().unwrap_or(Vec3::ZERO))
             .collect();
+        // Tangents go by the transform itself; a mirroring one turns the
+        // bitangent's handedness.
+        let hand = if mirrored { -1.0 } else { 1.0 };
+        let tangents: Vec<[f32; 4]> = (mesh.tangents.iter())
+            .map(|t| {
+                let v = transform.transform_vector3(Vec3::new(t[0], t[1], t[2]));
+                let v = v.try_normalize().unwrap_or(Vec3::ZERO);
+                [v.x, v.y, v.z, if t[3] < 0.0 { -hand } else { hand }]
+            })
+            .collect();
         for t in &mesh.triangles {
             let [a, b, c] = t.map(|i| i as usize);
             let (b, c) = if mirrored { (c, b) } else { (b, c) };
@@ -455,6 +481,11 @@ impl SceneBuilder {
                 let c = [mesh.colours[a], mesh.colours[b], mesh.colours[c]];
                 self.colours.resize(self.triangles.len() - 1, [[1.0; 4]; 3]);
                 self.colours.push(c);
+            }
+            if !tangents.is_empty() {
+                self.tangents
+                    .resize(self.triangles.len() - 1, [[0.0; 4]; 3]);
+                self.tangents.push([tangents[a], tangents[b], tangents[c]]);
             }
         }
         Ok(())
@@ -528,6 +559,10 @@ impl SceneBuilder {
                 .filter(|o| **o == 0)
                 .for_each(|o| *o = id);
         }
+        let mut tangents = self.tangents;
+        if !tangents.is_empty() {
+            tangents.resize(self.triangles.len(), [[0.0; 4]; 3]);
+        }
         Ok(Scene {
             name: self.name,
             camera,
@@ -537,6 +572,7 @@ impl SceneBuilder {
             texturing: Texturing {
                 uv,
                 colours,
+                tangents,
                 textures: std::sync::Arc::new(self.textures),
             },
             spheres: self.spheres,
@@ -549,6 +585,7 @@ impl SceneBuilder {
                 names: object_names,
                 of_primitive,
             },
+            assets: self.assets,
         })
     }
 }

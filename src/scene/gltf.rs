@@ -438,6 +438,14 @@ impl Reader<'_> {
             Some(&i) => i,
             None => {
                 let iat = format!("images[{}]", image.index());
+                // The gltf crate's `source` unwraps these (a panic).
+                let json = &self.doc.as_json().images[image.index()];
+                if json.buffer_view.is_some() && json.mime_type.is_none() {
+                    return Err(self.err(&iat, "an image in a buffer view needs a mimeType"));
+                }
+                if json.buffer_view.is_none() && json.uri.is_none() {
+                    return Err(self.err(&iat, "an image with neither a uri nor a bufferView"));
+                }
                 let bytes = match image.source() {
                     gltf::image::Source::View { view, .. } => {
                         self.view_bytes(&view, &iat)?.to_vec()
@@ -974,6 +982,8 @@ pub fn assemble(ix: &[u32], mode: Mode) -> Vec<[u32; 3]> {
 /// MikkTSpace tangents of a mesh with normals and `TEXCOORD_0` (the glTF
 /// specification's choice), averaged per vertex over the triangles that
 /// share it; vertices MikkTSpace leaves without one get `(1, 0, 0, 1)`.
+/// The bitangent `w · (normal × tangent)` points towards decreasing `v`,
+/// the image's up, as glTF's normal textures (+Y up) read it.
 fn generate_tangents(mesh: &AssetMesh) -> Vec<[f32; 4]> {
     struct Geometry<'m> {
         mesh: &'m AssetMesh,
@@ -993,7 +1003,12 @@ fn generate_tangents(mesh: &AssetMesh) -> Vec<[f32; 4]> {
             self.mesh.normals[self.mesh.triangles[face][vert] as usize].to_array()
         }
         fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-            self.mesh.uv0[self.mesh.triangles[face][vert] as usize]
+            // v flipped: MikkTSpace's bitangent follows increasing v, and
+            // glTF's normal textures have +Y up, towards decreasing v
+            // (as exporters, which run MikkTSpace on v-up coordinates,
+            // write their tangents).
+            let [u, v] = self.mesh.uv0[self.mesh.triangles[face][vert] as usize];
+            [u, 1.0 - v]
         }
         fn set_tangent(
             &mut self,

@@ -110,6 +110,10 @@ pub struct Maps {
     /// The factor an [`emissive`](Self::emissive) texture multiplies
     /// (glTF's `emissiveFactor` × `KHR_materials_emissive_strength`).
     pub emissive_factor: Vec3,
+    /// A tangent-space normal texture (linear; its `scale` in
+    /// [`TextureRef::scale`]) that bends the shading normal, on triangles
+    /// with tangents ([`Texturing::tangents`](super::Texturing::tangents)).
+    pub normal: Option<TextureRef>,
 }
 
 impl Maps {
@@ -213,6 +217,7 @@ impl Material {
             &self.maps.base_colour,
             &self.maps.metallic_roughness,
             &self.maps.emissive,
+            &self.maps.normal,
         ]
         .into_iter()
         .enumerate()
@@ -223,6 +228,9 @@ impl Material {
         }
         if self.maps.emissive.is_some() {
             words.push(self.maps.emissive_factor);
+        }
+        if let Some(n) = &self.maps.normal {
+            words.push(Vec3::new(7.0, n.scale, 0.0));
         }
         words
     }

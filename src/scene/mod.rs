@@ -184,6 +184,11 @@ pub struct Texturing {
     /// RGBA), which multiply its material's base colour; empty when no
     /// triangle has any, else white for a triangle without.
     pub colours: Vec<[[f32; 4]; 3]>,
+    /// Per triangle, its vertices' world-space tangents `(x, y, z, w)`
+    /// (glTF's `TANGENT`, or MikkTSpace's; `w = ±1`: the bitangent is
+    /// `w · (normal × tangent)`), for normal textures; empty when no
+    /// triangle has any, else zero for a triangle without.
+    pub tangents: Vec<[[f32; 4]; 3]>,
     /// The images materials' [`Maps`](material::Maps) refer to, decoded
     /// (shared by the engines, not copied).
     pub textures: std::sync::Arc<Vec<texture::Texture>>,
@@ -195,6 +200,22 @@ impl Texturing {
     pub fn is_empty(&self) -> bool {
         self.uv.is_empty() && self.colours.is_empty() && self.textures.is_empty()
     }
+}
+
+/// What the assets placed in a scene held, before their instances were
+/// flattened into triangles (for `--stats`): zero for a scene of TOML
+/// triangles, spheres and `[[mesh]]` entries alone.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AssetCounts {
+    /// Meshes of the assets, each counted once (a glTF mesh primitive,
+    /// a PLY file, an OBJ material group).
+    pub meshes: usize,
+    /// Placements of those meshes.
+    pub instances: usize,
+    /// Triangles counting each mesh once.
+    pub unique_triangles: usize,
+    /// Triangles counting each instance (what flattening made).
+    pub instanced_triangles: usize,
 }
 
 /// Everything a render needs to know about the world.
@@ -240,6 +261,8 @@ pub struct Scene {
     /// The scene's objects, for the object_id AOV: what each primitive
     /// belongs to, and their names.
     pub objects: Objects,
+    /// What its assets held before flattening.
+    pub assets: AssetCounts,
 }
 
 /// A scene's objects (what the object_id AOV tells apart): one per entry
@@ -452,6 +475,12 @@ impl Scene {
             for v in c {
                 put(Vec3::new(v[0], v[1], v[2]));
                 put(Vec3::new(v[3], -2.0, 0.0));
+            }
+        }
+        for c in &self.texturing.tangents {
+            for v in c {
+                put(Vec3::new(v[0], v[1], v[2]));
+                put(Vec3::new(v[3], -3.0, 0.0));
             }
         }
         // (Scenes without spheres hash as before spheres existed.)

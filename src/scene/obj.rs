@@ -36,8 +36,26 @@ pub struct ObjMaterial {
     pub name: String,
     /// `Kd` (black if absent).
     pub diffuse: Vec3,
-    /// `Ke` (black if absent).
+    /// `Ke` (black if absent; white where only `map_Ke` is given).
     pub emission: Vec3,
+    /// `map_Kd`: the image that multiplies `Kd`, and the MTL line naming
+    /// it (its path relative to the MTL file's directory).
+    pub diffuse_map: Option<MapFile>,
+    /// `map_Ke`: the image that multiplies `Ke`.
+    pub emissive_map: Option<MapFile>,
+}
+
+/// An image an MTL file names (`map_Kd`, `map_Ke`): its path (relative
+/// names resolved against the MTL file's directory; the last word of the
+/// line, after any options), and where it is named.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapFile {
+    /// The image file.
+    pub path: PathBuf,
+    /// The MTL file.
+    pub mtl: PathBuf,
+    /// The line of the MTL file that names it.
+    pub line: usize,
 }
 
 /// An OBJ file's polygons, fan-triangulated, in file order.
@@ -51,6 +69,11 @@ pub struct ObjMesh {
     /// Per triangle: index into `materials`, or `None` (no `usemtl`, or
     /// one that names no material of the MTL files).
     pub material: Vec<Option<usize>>,
+    /// Per triangle: its corners' texture coordinates (`vt`, `v` flipped
+    /// to the (0, 0)-at-the-top-left convention of
+    /// [`texture`](super::texture)), or `None` (a face without, or an
+    /// object where some faces have none).
+    pub uv: Vec<Option<[[f32; 2]; 3]>>,
     /// The materials of the file's `mtllib`s (empty unless asked for).
     pub materials: Vec<ObjMaterial>,
     /// The files read: the OBJ, then its MTL files (when asked for).
@@ -74,6 +97,7 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mtl_error: RefCell<Option<ObjError>> = RefCell::new(None);
     let sources = RefCell::new(vec![path.to_path_buf()]);
+    let maps: RefCell<Vec<(String, &'static str, MapFile)>> = RefCell::new(Vec::new());
     let loader = |mtl: &Path| -> tobj::MTLLoadResult {
         if !with_mtl {
             return Ok((Vec::new(), Default::default()));
@@ -82,7 +106,10 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         sources.borrow_mut().push(mtl_path.clone());
         let result = load_mtl(&mtl_path);
         match result {
-            Ok(r) => r,
+            Ok((r, found)) => {
+                maps.borrow_mut().extend(found);
+                r
+            }
             Err(e) => {
                 mtl_error.borrow_mut().get_or_insert(e);
                 Err(tobj::LoadError::OpenFileFailed)
@@ -106,10 +133,25 @@ pub fn load(path: &Path, with_mtl: bool) -> Result<ObjMesh, ObjError> {
         materials
             .map_err(|e| err(0, format!("cannot load its materials: {e}")))?
             .into_iter()
-            .map(|m| ObjMaterial {
-                name: m.name,
-                diffuse: Vec3::from_array(m.diffuse.unwrap_or([0.0; 3])),
-                emission: Vec3::from_array(m.emissive.unwrap_or([0.0; 3])),
+            .map(|m| {
+                let map = |key: &str| {
+                    (maps.borrow().iter().rev())
+                        .find(|(name, k, _)| *name == m.name && *k == key)
+                        .map(|(_, _, f)| f.clone())
+                };
+                let emissive_map = map("map_Ke");
+                let white = if emissive_map.is_some() {
+                    [1.0; 3]
+                } else {
+                    [0.0; 3]
+                };
+                ObjMaterial {
+                    diffuse: Vec3::from_array(m.diffuse.unwrap_or([0.0; 3])),
+                    emission: Vec3::from_array(m.emissive.unwrap_or(white)),
+                    diffuse_map: map("map_Kd"),
+                    emissive_map,
+                    name: m.name,
+                }
             })
             .collect()
     } else {
@@ -173,10 +215,19 @@ fn add_faces(
         m.face_arities.clone()
     };
     let mat = m.material_id.filter(|&i| i < mesh.materials.len());
+    // Texture coordinates where every corner of the object has them.
+    let vt = (m.texcoord_indices.len() == m.indices.len()).then_some(&m.texcoord_indices);
+    let uv = |k: usize| -> Option<[f32; 2]> {
+        let i = *vt?.get(k)? as usize * 2;
+        let (u, v) = (*m.texcoords.get(i)?, *m.texcoords.get(i + 1)?);
+        let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
+        Some([finite(u), finite(1.0 - v)])
+    };
     let mut at = 0usize;
     for n in arities {
         let n = n as usize;
         let face = m.indices.get(at..at.saturating_add(n)).ok_or_else(bad)?;
+        let first = at;
         at += n;
         if n < 3 {
             continue; // no area (the precheck refuses a face of no vertices)
@@ -204,6 +255,11 @@ fn add_faces(
             mesh.normals
                 .push((!normals.is_empty()).then(|| [corner(0), corner(k), corner(k + 1)]));
             mesh.material.push(mat);
+            mesh.uv
+                .push(match [uv(first), uv(first + k), uv(first + k + 1)] {
+                    [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                    _ => None,
+                });
         }
     }
     Ok(())
@@ -228,8 +284,8 @@ pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::Asse
     let file = path.display().to_string();
     let mut meshes: Vec<AssetMesh> = Vec::new();
     let mut mesh_of: Vec<Option<usize>> = vec![None; obj.materials.len() + 1];
-    let faces = obj.triangles.iter().zip(&obj.material).zip(&obj.normals);
-    for ((tri, mat), normals) in faces {
+    let faces = (obj.triangles.iter().zip(&obj.material)).zip(obj.normals.iter().zip(&obj.uv));
+    for ((tri, mat), (normals, uv)) in faces {
         let slot = mat.unwrap_or(obj.materials.len());
         let k = *mesh_of[slot].get_or_insert_with(|| {
             meshes.push(AssetMesh {
@@ -243,6 +299,10 @@ pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::Asse
         let base = m.positions.len() as u32;
         m.positions.extend(tri);
         m.triangles.push([base, base + 1, base + 2]);
+        if let Some(t) = uv {
+            m.uv0.resize(base as usize, [0.0; 2]);
+            m.uv0.extend(t);
+        }
         match normals {
             Some(n) => {
                 m.normals.resize(base as usize, Vec3::ZERO);
@@ -256,19 +316,29 @@ pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::Asse
         if !m.normals.is_empty() {
             m.normals.resize(m.positions.len(), Vec3::ZERO);
         }
+        if !m.uv0.is_empty() {
+            m.uv0.resize(m.positions.len(), [0.0; 2]);
+        }
     }
-    let materials = obj
-        .materials
-        .iter()
-        .map(|m| PbrMaterial {
+    let mut textures = Vec::new();
+    let mut sources = obj.sources[1..].to_vec();
+    let mut materials = Vec::new();
+    for m in &obj.materials {
+        let mut texture = |f: &Option<MapFile>| match f {
+            Some(f) => read_map(f, &mut textures, &mut sources).map(Some),
+            None => Ok(None),
+        };
+        materials.push(PbrMaterial {
             name: m.name.clone(),
             base_colour: [m.diffuse.x, m.diffuse.y, m.diffuse.z, 1.0],
+            base_colour_texture: texture(&m.diffuse_map)?,
             metallic: 0.0,
             roughness: 1.0,
             emissive: m.emission.to_array(),
+            emissive_texture: texture(&m.emissive_map)?,
             ..PbrMaterial::default()
-        })
-        .collect();
+        });
+    }
     let instances = (0..meshes.len() as u32)
         .map(|mesh| Instance {
             mesh,
@@ -279,9 +349,42 @@ pub fn load_asset(path: &Path) -> Result<super::asset::Asset, super::asset::Asse
         meshes,
         instances,
         materials,
-        // Its MTL files (the OBJ is the asset's own file).
-        sources: obj.sources[1..].to_vec(),
+        textures,
+        // Its MTL files and images (the OBJ is the asset's own file).
+        sources,
         ..Asset::default()
+    })
+}
+
+/// The image `f` names, decoded (sRGB) into `textures` and recorded in
+/// `sources`: a texture of the asset that repeats and
+/// filters linearly. An image that cannot be read is refused naming the
+/// MTL line that names it.
+fn read_map(
+    f: &MapFile,
+    textures: &mut Vec<super::texture::Texture>,
+    sources: &mut Vec<PathBuf>,
+) -> Result<super::texture::TextureRef, super::asset::AssetError> {
+    use super::texture::{ColourSpace, Texture, TextureRef};
+    let refuse = |m: String| {
+        super::asset::AssetError::new(
+            &f.mtl.display().to_string(),
+            format!("line {}", f.line),
+            format!("{}: {m}", f.path.display()),
+        )
+    };
+    let bytes = std::fs::read(&f.path).map_err(|e| refuse(format!("cannot read: {e}")))?;
+    let t = Texture::decode(&bytes, ColourSpace::Srgb).map_err(|e| refuse(e.to_string()))?;
+    textures.push(t);
+    if !sources.contains(&f.path) {
+        sources.push(f.path.clone());
+    }
+    Ok(TextureRef {
+        texture: (textures.len() - 1) as u32,
+        tex_coord: 0,
+        sampler: Default::default(),
+        transform: Default::default(),
+        scale: 1.0,
     })
 }
 
@@ -443,8 +546,13 @@ fn precheck_face(
     Ok((corners >= 3).then_some(face_normals))
 }
 
-/// Load an MTL file after checking the colours wavetrace reads.
-fn load_mtl(path: &Path) -> Result<tobj::MTLLoadResult, ObjError> {
+/// What [`load_mtl`] gives: `tobj`'s materials, and the images the
+/// materials name (`(material, "map_Kd" or "map_Ke", file)`).
+type MtlLoad = (tobj::MTLLoadResult, Vec<(String, &'static str, MapFile)>);
+
+/// Load an MTL file after checking the colours wavetrace reads, and the
+/// images its `map_Kd` and `map_Ke` lines name (each must be a file).
+fn load_mtl(path: &Path) -> Result<MtlLoad, ObjError> {
     let err = |line: usize, message: String| ObjError {
         file: path.to_path_buf(),
         line,
@@ -454,10 +562,38 @@ fn load_mtl(path: &Path) -> Result<tobj::MTLLoadResult, ObjError> {
         std::fs::read(path).map_err(|e| err(0, format!("cannot read the material file: {e}")))?;
     // Decoded lossily, like the OBJ (see the module docs).
     let bytes = String::from_utf8_lossy(&bytes).into_owned().into_bytes();
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let (mut maps, mut material) = (Vec::new(), String::new());
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = String::from_utf8_lossy(raw);
         let mut words = line.split_whitespace();
         let key = words.next();
+        if key == Some("newmtl") {
+            material = words.clone().collect::<Vec<_>>().join(" ");
+        }
+        if let Some(key @ ("map_Kd" | "map_Ke")) = key {
+            let name = words
+                .last()
+                .ok_or_else(|| err(i + 1, format!("`{key}` names no image")))?;
+            let file = dir.join(name);
+            if !file.is_file() {
+                return Err(err(
+                    i + 1,
+                    format!("`{key}` names {}, which is not a file", file.display()),
+                ));
+            }
+            let map = MapFile {
+                path: file,
+                mtl: path.to_path_buf(),
+                line: i + 1,
+            };
+            maps.push((
+                material.clone(),
+                if key == "map_Kd" { "map_Kd" } else { "map_Ke" },
+                map,
+            ));
+            continue;
+        }
         if matches!(key, Some("Ka" | "Kd" | "Ks" | "Ke" | "Kt" | "Tf")) {
             let key = key.unwrap_or_default();
             let values: Vec<f32> = words
@@ -481,7 +617,7 @@ fn load_mtl(path: &Path) -> Result<tobj::MTLLoadResult, ObjError> {
     if let Err(e) = &result {
         return Err(err(reader.line(), format!("malformed MTL: {e}")));
     }
-    Ok(result)
+    Ok((result, maps))
 }
 
 /// A reader over bytes that knows which line it has read up to.
