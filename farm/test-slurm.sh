@@ -16,7 +16,9 @@
 #    equal those of a local single run byte for byte.
 # 4. Deletes shard 2's partial file, reruns that shard alone
 #    (farm/submit.sh --array 2) with a new merge, and checks again.
-# 5. Prints the time of the 4-shard array (submission to the last shard done,
+# 5. Renders a small `wavetrace views` job (farm/views.sbatch, 3 shards) and
+#    checks its files equal those of a local single run byte for byte.
+# 6. Prints the time of the 4-shard array (submission to the last shard done,
 #    and to the merge done) and of the single local run.
 # Every wait is bounded. On exit, success or not, it cancels its jobs and
 # stops the daemons it started, by PID, and removes the temporary directory
@@ -298,7 +300,38 @@ say "without part 2, merge refuses: $(head -n 1 "$T/lost.out")"
 run_farm "rerun of shard 2" --array 2
 check_identical "shard 2 rerun + merge"
 
-# --- 5. times ------------------------------------------------------------------
+# --- 5. a views dataset job across shards ------------------------------------
+cat >"$T/views-job.toml" <<VJOB
+[assets]
+files = ["$ROOT/scenes/textured.glb"]
+normalize = true
+[cameras]
+kind = "orbit"
+views = 4
+elevations = [20.0, 45.0]
+[render]
+width = 32
+height = 32
+spp = 8
+[outputs]
+aov = ["depth"]
+VJOB
+"$BIN" views "$T/views-job.toml" --out-dir "$T/views-single" --threads "$CPUS" >"$T/views-single.out" 2>&1 ||
+    fail "the single views run failed: $(cat "$T/views-single.out")"
+mkdir -p "$T/views-logs"
+views_array=$(WAVETRACE=$BIN timeout 60 sbatch --parsable --array=0-2 --cpus-per-task=1 \
+    --output="$T/views-logs/views-%a.log" farm/views.sbatch 3 "$T/views-job.toml" "$T/views-farm") ||
+    fail "sbatch farm/views.sbatch failed: $views_array"
+views_array=${views_array%%;*}
+JOBS+=("$views_array")
+say "views: submitted 3-shard array job $views_array"
+wait_for 300 "views array job $views_array" jobs_done "$views_array"
+[ "$(job_state "$views_array")" = "COMPLETED " ] || fail "views array job $views_array ended $(job_state "$views_array")"
+rm -f "$T"/views-farm/stats-*.json
+diff -r "$T/views-single" "$T/views-farm" >/dev/null || fail "the 3-shard views job's files differ from the single run's"
+say "views: 3-shard Slurm array == single run, byte for byte ($(find "$T/views-farm" -type f | wc -l) files)"
+
+# --- 6. times ------------------------------------------------------------------
 echo
 echo "test-slurm: Cornell box ${SIZE}x${SIZE}, ${SPP} spp, seed 7, one node with $CPUS CPUs:"
 echo "test-slurm:   single local run (--threads $CPUS):                              ${SINGLE_SECONDS} s"

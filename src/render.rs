@@ -438,15 +438,27 @@ impl Renderer {
         })
     }
 
-    /// Render from another camera (at the settings' size) and seed with
-    /// the same prepared scene: the hierarchy, the lights and the thread
-    /// pool are kept, so many views of one scene are built once. Samples
-    /// rendered afterwards are those a new renderer of that camera and
-    /// seed would render, bit for bit.
+    /// Point the renderer at another camera (made for the render's width
+    /// and height) and seed, keeping everything built from the scene: its
+    /// hierarchy, tables, textures and lights. What changes between the
+    /// views of one asset (`wavetrace views`): a view renders exactly as a
+    /// renderer made for the scene with that camera and seed.
     pub fn set_view(&mut self, camera: &crate::scene::camera::Camera, seed: u64) {
-        self.frame.camera = camera.for_resolution(self.settings.width, self.settings.height);
+        let s = &mut self.settings;
+        s.seed = seed;
+        self.frame.camera = camera.for_resolution(s.width, s.height);
         self.frame.seed = seed;
-        self.settings.seed = seed;
+    }
+
+    /// Rebuild the lights (emitters and environment) from `scene`: the
+    /// scene this renderer was made for, with another environment (a view
+    /// of `wavetrace views` under another sky). Its geometry and materials
+    /// must be the ones the renderer was made for.
+    pub fn relight(&mut self, scene: &Scene) {
+        match &mut self.engine {
+            EngineState::Reference(tracer) => tracer.relight(scene),
+            EngineState::Wavefront(engine) => engine.relight(scene),
+        }
     }
 
     /// The bounding volume hierarchy the engine traces against.

@@ -10,6 +10,7 @@ pub(crate) mod progress;
 mod render;
 pub(crate) mod stats;
 mod view;
+mod views;
 
 use crate::error::Result;
 use clap::{Parser, Subcommand};
@@ -21,6 +22,7 @@ pub use denoise::DenoiseArgs;
 pub use merge::MergeArgs;
 pub use render::{FarmArgs, RenderArgs};
 pub use view::ViewArgs;
+pub use views::ViewsArgs;
 
 /// The help's closing section: examples, the exit statuses, where the
 /// details are.
@@ -80,6 +82,9 @@ pub enum Command {
     /// Denoise an image rendered earlier with Intel Open Image Denoise
     /// (guided by its albedo and normal layers when it has them).
     Denoise(DenoiseArgs),
+    /// Render many views of many assets (a dataset): colour, AOVs, camera
+    /// files (transforms.json, OpenCV), resumable and sharded (docs/views.md).
+    Views(ViewsArgs),
 }
 
 /// Load the scene file at `path`: a TOML scene, or an asset (glTF, GLB,
@@ -109,5 +114,6 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Converge(args)) => converge::run(args).map(|()| ExitCode::SUCCESS),
         Some(Command::Denoise(args)) => denoise::run(args).map(|()| ExitCode::SUCCESS),
+        Some(Command::Views(args)) => views::run(args),
     }
 }

@@ -92,6 +92,12 @@ impl ReferenceTracer {
         )
     }
 
+    /// Rebuild the lights from `scene` (the tracer's scene with another
+    /// environment).
+    pub fn relight(&mut self, scene: &Scene) {
+        self.lights = Lights::new(scene);
+    }
+
     fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {
         Self {
             accel,

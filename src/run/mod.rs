@@ -6,3 +6,5 @@ pub mod merge;
 pub mod plot;
 pub mod session;
 pub mod shard;
+pub mod views;
+pub mod views_cameras;

@@ -20,6 +20,7 @@ pub mod options;
 pub mod ply;
 pub mod punctual;
 pub mod texture;
+pub mod views_job;
 
 use camera::Camera;
 use glam::Vec3;

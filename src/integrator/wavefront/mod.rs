@@ -103,6 +103,12 @@ impl WavefrontEngine {
         }
     }
 
+    /// Rebuild the lights from `scene` (the engine's scene with another
+    /// environment).
+    pub fn relight(&mut self, scene: &Scene) {
+        self.lights = Lights::new(scene);
+    }
+
     /// Render a tile, at most `frame.batch_size` paths at a time: whole
     /// pixels per batch when they fit, else the pixel's samples split.
     pub fn render_tile<S: Sampler>(

@@ -1,0 +1,688 @@
+//! `wavetrace views`: many views of many assets, resumable and sharded.
+//!
+//! A job ([`ViewsJob`]) names assets and cameras; its work is the
+//! `(asset, view)` pairs, numbered asset by asset. A shard `I/N` renders
+//! the pairs `⌊I·P/N⌋ .. ⌊(I+1)·P/N⌋` of the `P` pairs, so shards never
+//! overlap and together cover the job. Each asset is loaded, and its
+//! hierarchy, textures and tables built, once for all its views in the
+//! shard; only the camera, the seed (and, when the job varies the
+//! lighting, the lights) change between views.
+//!
+//! **Reproducible.** View `i` of an asset renders with the seed derived
+//! from the job's [settings hash](ViewsJob::settings_hash), the asset
+//! file's bytes and `i` ([`view_seed`]), and random cameras and lighting
+//! choices from seeds derived the same way: a view's files are the same
+//! bytes whatever the shard count, thread count, order or resumes.
+//!
+//! **Resumable.** A view's files are written whole (atomically), then its
+//! record, `manifest/NNNN.json` beside them: the job and asset hashes and
+//! every file with its hash. A view whose record matches the job, the
+//! asset and its files on disk is skipped. The library prints nothing:
+//! progress goes to the caller through [`ViewsEvent`]s.
+
+use super::views_cameras::{
+    Normalisation, Pose, normalisation, opencv_json, poses, transforms_json,
+};
+use crate::denoise::{Aux, Denoiser};
+use crate::error::{Error, Result};
+use crate::fs::write_atomic;
+use crate::output::view::ViewTransform;
+use crate::render::{Engine, RenderSettings, Renderer};
+use crate::scene::views_job::ViewsJob;
+use crate::scene::{Aov, AovSet, Scene};
+use glam::Vec3;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to run a job: where, which part, and the tuning that never
+/// changes a bit of the output.
+#[derive(Clone, Debug)]
+pub struct ViewsOptions {
+    /// The output directory (one folder per asset inside).
+    pub out_dir: PathBuf,
+    /// The shard `(index, count)` to render; `None`: all of it.
+    pub shard: Option<(u32, u32)>,
+    /// Worker threads.
+    pub threads: usize,
+    /// The path tracer.
+    pub engine: Engine,
+    /// Paths per wavefront batch (`None`: the default).
+    pub batch_size: Option<usize>,
+}
+
+/// What happened, as it happens (the command draws its progress from these).
+#[derive(Debug)]
+pub enum ViewsEvent<'a> {
+    /// The work is planned: this many views in this run's share.
+    Planned {
+        /// Views in the shard.
+        views: u64,
+    },
+    /// A view is done: rendered, or skipped (finished earlier).
+    View {
+        /// The asset's name.
+        asset: &'a str,
+        /// The view's index.
+        view: u32,
+        /// Whether it was finished already.
+        skipped: bool,
+        /// Seconds spent tracing paths.
+        render_seconds: f64,
+        /// Seconds spent on everything else of the view (AOVs, denoise,
+        /// writing, hashing).
+        write_seconds: f64,
+    },
+    /// An asset is done (or failed).
+    Asset(&'a AssetReport),
+}
+
+/// What happened to one asset.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct AssetReport {
+    /// Its folder's name.
+    pub name: String,
+    /// Its file.
+    pub file: String,
+    /// Seconds to read it (0 when every view was finished).
+    pub load_seconds: f64,
+    /// Seconds to build its hierarchy and tables.
+    pub build_seconds: f64,
+    /// Its triangles.
+    pub triangles: usize,
+    /// Views rendered by this run.
+    pub views_rendered: u32,
+    /// Views skipped, finished earlier.
+    pub views_skipped: u32,
+    /// Seconds tracing paths, all its views.
+    pub render_seconds: f64,
+    /// Seconds on the rest of its views (AOVs, denoise, writing, hashing).
+    pub write_seconds: f64,
+    /// Why it failed, if it did (its views are then not rendered).
+    pub error: Option<String>,
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default)]
+pub struct ViewsReport {
+    /// The assets this run's share touched, in order.
+    pub assets: Vec<AssetReport>,
+    /// Views in this run's share.
+    pub views: u64,
+    /// Views rendered.
+    pub rendered: u64,
+    /// Views skipped (finished earlier).
+    pub skipped: u64,
+    /// Whether `stop` ended the run early (between views, or inside one,
+    /// whose files are then not written).
+    pub stopped: bool,
+}
+
+impl ViewsReport {
+    /// The assets that failed.
+    pub fn failed(&self) -> impl Iterator<Item = &AssetReport> {
+        self.assets.iter().filter(|a| a.error.is_some())
+    }
+}
+
+/// The decimal digits of view numbers in file names: those of the view
+/// count (at least 1), so 1000 views are `0000..0999` and 10000 are
+/// `00000..09999`; a name never wraps or grows within a job.
+pub fn name_width(views: u32) -> usize {
+    views.max(1).to_string().len()
+}
+
+/// The folder names of `assets`: each file's stem, with `-K` (its index
+/// in the list) added where stems repeat.
+pub fn asset_names(assets: &[PathBuf]) -> Vec<String> {
+    let stem = |p: &PathBuf| {
+        p.file_stem()
+            .map_or("asset".into(), |s| s.to_string_lossy().into_owned())
+    };
+    let stems: Vec<String> = assets.iter().map(stem).collect();
+    stems
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            if stems.iter().filter(|t| *t == s).count() > 1 {
+                format!("{s}-{i}")
+            } else {
+                s.clone()
+            }
+        })
+        .collect()
+}
+
+/// The pairs `(asset, view)` of shard `(index, count)` of `pairs`, as a
+/// range of pair numbers (`asset · views + view`).
+pub fn shard_pairs(pairs: u64, shard: Option<(u32, u32)>) -> std::ops::Range<u64> {
+    match shard {
+        None => 0..pairs,
+        Some((i, n)) => {
+            let at = |k: u32| (u128::from(pairs) * u128::from(k) / u128::from(n)) as u64;
+            at(i)..at(i + 1)
+        }
+    }
+}
+
+/// A seed from the job's settings hash, the asset's hash, a view and a
+/// purpose.
+fn derive(job: u128, asset: u128, view: u32, purpose: &[u8]) -> u64 {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(&job.to_le_bytes());
+    h.update(&asset.to_le_bytes());
+    h.update(&view.to_le_bytes());
+    h.update(purpose);
+    h.digest()
+}
+
+/// The render seed of view `view` of the asset whose bytes hash to
+/// `asset`, in the job whose settings hash to `job`.
+pub fn view_seed(job: u128, asset: u128, view: u32) -> u64 {
+    derive(job, asset, view, b"render")
+}
+
+/// The 128-bit hash of the asset file's bytes (what its views' seeds are
+/// derived from).
+fn asset_hash(path: &Path) -> Result<u128> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| Error::Settings(format!("{}: cannot read the asset: {e}", path.display())))?;
+    Ok(xxhash_rust::xxh3::xxh3_128(&bytes))
+}
+
+/// An asset as the views render it: its scene (its own light, or the
+/// default sky where it has none) and bounds.
+fn load_asset(path: &Path) -> Result<(Scene, Vec3, Vec3)> {
+    let scene = if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+    {
+        Scene::load(path)?
+    } else {
+        let asset = crate::scene::mesh_source::load(path)
+            .map_err(crate::scene::asset_scene::scene_error)?;
+        let name = path
+            .file_stem()
+            .map_or("asset".into(), |s| s.to_string_lossy().into_owned());
+        crate::scene::asset_scene::scene_from_asset(
+            &asset,
+            &name,
+            &path.display().to_string(),
+            None,
+        )?
+    };
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for t in &scene.triangles {
+        for v in t.v {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    for s in &scene.spheres {
+        lo = lo.min(s.center - Vec3::splat(s.radius));
+        hi = hi.max(s.center + Vec3::splat(s.radius));
+    }
+    if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
+        return Err(Error::Settings(format!(
+            "{}: nothing to render",
+            path.display()
+        )));
+    }
+    Ok((scene, lo, hi))
+}
+
+/// Run `job`'s share (`options.shard`) into `options.out_dir`, skipping
+/// finished views; `stop()` is asked between views and tiles. A broken
+/// asset is recorded in its [`AssetReport`] and the run goes on; errors
+/// are for what stops the whole job (an output that cannot be written,
+/// the denoiser missing).
+pub fn run(
+    job: &ViewsJob,
+    options: &ViewsOptions,
+    stop: &(dyn Fn() -> bool + Sync),
+    observe: &mut dyn FnMut(ViewsEvent),
+) -> Result<ViewsReport> {
+    let views = job.view_count();
+    let pairs = job.assets.len() as u64 * u64::from(views);
+    let share = shard_pairs(pairs, options.shard);
+    let mut report = ViewsReport {
+        views: share.end - share.start,
+        ..ViewsReport::default()
+    };
+    observe(ViewsEvent::Planned {
+        views: report.views,
+    });
+    let mut denoiser = match job.render.denoise {
+        true => Some(Denoiser::new()?),
+        false => None,
+    };
+    std::fs::create_dir_all(&options.out_dir)
+        .map_err(|e| crate::fs::FileError::new(&options.out_dir, e))?;
+    let names = asset_names(&job.assets);
+    let job_hash = job.settings_hash();
+    let per_asset = u64::from(views.max(1));
+    let first = (share.start / per_asset) as usize;
+    let last = share.end.div_ceil(per_asset) as usize;
+    let assets = job.assets.iter().zip(&names).enumerate();
+    for (a, (path, name)) in assets.take(last).skip(first) {
+        let lo = (a as u64 * per_asset).max(share.start) - a as u64 * per_asset;
+        let hi = ((a as u64 + 1) * per_asset).min(share.end) - a as u64 * per_asset;
+        let mut asset = AssetReport {
+            name: name.clone(),
+            file: path.display().to_string(),
+            ..AssetReport::default()
+        };
+        let range = lo as u32..hi as u32;
+        let work = AssetWork {
+            job,
+            options,
+            job_hash,
+            path,
+            dir: options.out_dir.join(name),
+        };
+        match work.run(range.clone(), &mut asset, &mut denoiser, stop, observe) {
+            Ok(done) => {
+                report.rendered += u64::from(asset.views_rendered);
+                report.skipped += u64::from(asset.views_skipped);
+                if !done {
+                    report.stopped = true;
+                }
+            }
+            Err(e) if stops_the_job(&e) => return Err(e),
+            Err(e) => asset.error = Some(e.to_string()),
+        }
+        observe(ViewsEvent::Asset(&asset));
+        report.assets.push(asset);
+        if report.stopped {
+            break;
+        }
+    }
+    Ok(report)
+}
+
+/// Whether `e` is about writing outputs (or the denoiser): it stops a
+/// views job; anything else (a missing or broken asset) stops only its
+/// asset.
+fn stops_the_job(e: &Error) -> bool {
+    matches!(e, Error::Io(_) | Error::Denoise(_))
+}
+
+/// One asset's share of a job.
+struct AssetWork<'a> {
+    job: &'a ViewsJob,
+    options: &'a ViewsOptions,
+    job_hash: u128,
+    path: &'a Path,
+    dir: PathBuf,
+}
+
+impl AssetWork<'_> {
+    /// The file names of view `i`, colour first.
+    fn files(&self, i: u32) -> Vec<String> {
+        let o = &self.job.outputs;
+        let n = format!("{i:0w$}", w = name_width(self.job.view_count()));
+        let mut files = Vec::new();
+        if o.png {
+            files.push(format!("{n}.png"));
+        }
+        if o.exr {
+            files.push(format!("{n}.exr"));
+        }
+        for aov in o.aovs.iter() {
+            files.push(format!("{n}.{}.exr", aov.name()));
+        }
+        files
+    }
+
+    fn record_path(&self, i: u32) -> PathBuf {
+        let w = name_width(self.job.view_count());
+        self.dir.join("manifest").join(format!("{i:0w$}.json"))
+    }
+
+    /// Whether view `i`'s record says it is finished with these hashes,
+    /// and its files are there with the hashes recorded.
+    fn finished(&self, i: u32, asset_hash: u128) -> bool {
+        let Ok(text) = std::fs::read_to_string(self.record_path(i)) else {
+            return false;
+        };
+        let Ok(record) = serde_json::from_str::<serde_json::Value>(&text) else {
+            return false;
+        };
+        let hex = |k: &str| record.get(k).and_then(|v| v.as_str()).map(str::to_string);
+        if hex("job") != Some(format!("{:032x}", self.job_hash))
+            || hex("asset") != Some(format!("{asset_hash:032x}"))
+        {
+            return false;
+        }
+        let Some(files) = record.get("files").and_then(|f| f.as_object()) else {
+            return false;
+        };
+        let wanted = self.files(i);
+        files.len() == wanted.len()
+            && wanted.iter().all(|name| {
+                let recorded = files.get(name).and_then(|v| v.as_str());
+                recorded.is_some() && recorded == file_hash(&self.dir.join(name)).as_deref()
+            })
+    }
+
+    /// Render the views `range` not yet finished. Returns false when
+    /// `stop` ended it early.
+    fn run(
+        &self,
+        range: std::ops::Range<u32>,
+        report: &mut AssetReport,
+        denoiser: &mut Option<Denoiser>,
+        stop: &(dyn Fn() -> bool + Sync),
+        observe: &mut dyn FnMut(ViewsEvent),
+    ) -> Result<bool> {
+        let hash = asset_hash(self.path)?;
+        let todo: Vec<u32> = range.clone().filter(|&i| !self.finished(i, hash)).collect();
+        let have_cameras = ["transforms.json", "cameras.json"]
+            .iter()
+            .all(|f| self.dir.join(f).is_file());
+        for i in range.clone().filter(|i| !todo.contains(i)) {
+            report.views_skipped += 1;
+            observe(ViewsEvent::View {
+                asset: &report.name,
+                view: i,
+                skipped: true,
+                render_seconds: 0.0,
+                write_seconds: 0.0,
+            });
+        }
+        if todo.is_empty() && have_cameras {
+            return Ok(true);
+        }
+        let t = Instant::now();
+        let (mut scene, lo, hi) = load_asset(self.path)?;
+        report.load_seconds = t.elapsed().as_secs_f64();
+        report.triangles = scene.triangles.len();
+        let job = self.job;
+        let n = normalisation(lo, hi, job.normalize);
+        let (wlo, whi) = ((lo - n.centre) * n.scale, (hi - n.centre) * n.scale);
+        let camera_seed = |i: u32| derive(self.job_hash, hash, i, b"camera");
+        let poses = poses(job, wlo, whi, &camera_seed);
+        std::fs::create_dir_all(self.dir.join("manifest"))
+            .map_err(|e| crate::fs::FileError::new(&self.dir, e))?;
+        let colour: Vec<String> = (0..job.view_count())
+            .map(|i| self.files(i)[0].clone())
+            .collect();
+        let (w, h) = (job.render.width, job.render.height);
+        write_text(
+            &self.dir.join("transforms.json"),
+            &transforms_json(&poses, &colour, w, h),
+        )?;
+        write_text(
+            &self.dir.join("cameras.json"),
+            &opencv_json(&poses, &colour, w, h),
+        )?;
+        if todo.is_empty() {
+            return Ok(true);
+        }
+        let t = Instant::now();
+        let mut lighting = None;
+        if !job.environments.is_empty() {
+            let pick = self.lighting(hash, todo[0]);
+            scene.environment = Some(self.environment(pick));
+            lighting = Some(pick);
+        }
+        let settings = self.settings(&scene);
+        let mut renderer = Renderer::new(&scene, &settings)?;
+        report.build_seconds = t.elapsed().as_secs_f64();
+        for &i in &todo {
+            if stop() {
+                return Ok(false);
+            }
+            if !job.environments.is_empty() {
+                let pick = self.lighting(hash, i);
+                if lighting != Some(pick) {
+                    scene.environment = Some(self.environment(pick));
+                    renderer.relight(&scene);
+                    lighting = Some(pick);
+                }
+            }
+            let view = View {
+                index: i,
+                pose: &poses[i as usize],
+                n: &n,
+                seed: view_seed(self.job_hash, hash, i),
+                asset_hash: hash,
+            };
+            let Some((render_seconds, write_seconds)) =
+                self.view(&mut renderer, &view, denoiser, stop)?
+            else {
+                return Ok(false);
+            };
+            report.views_rendered += 1;
+            report.render_seconds += render_seconds;
+            report.write_seconds += write_seconds;
+            observe(ViewsEvent::View {
+                asset: &report.name,
+                view: i,
+                skipped: false,
+                render_seconds,
+                write_seconds,
+            });
+        }
+        Ok(true)
+    }
+
+    /// The render settings of this asset's views.
+    fn settings(&self, scene: &Scene) -> RenderSettings {
+        let r = &self.job.render;
+        let mut s = RenderSettings::for_scene(scene);
+        s.width = r.width;
+        s.height = r.height;
+        s.spp = r.spp;
+        s.max_depth = r.max_depth.unwrap_or(scene.max_depth);
+        s.integrator = r.integrator.unwrap_or(s.integrator);
+        s.threads = self.options.threads;
+        s.engine = self.options.engine;
+        s.batch_size = self.options.batch_size.unwrap_or(s.batch_size);
+        s.aovs = self.job.outputs.aovs;
+        if r.denoise {
+            s.aovs = s.aovs.union(AovSet::DENOISE);
+        }
+        s
+    }
+
+    /// The lighting of view `i`: a seeded choice among the job's
+    /// environments, and its rotation (degrees; a seeded angle when the job
+    /// asks, else the environment's own).
+    fn lighting(&self, asset_hash: u128, i: u32) -> (usize, f32) {
+        let envs = &self.job.environments;
+        let mut u =
+            super::views_cameras::Stream::new(derive(self.job_hash, asset_hash, i, b"light"));
+        let k = ((u.uniform() * envs.len() as f32) as usize).min(envs.len() - 1);
+        let rotation = match self.job.random_rotation {
+            true => 360.0 * u.uniform(),
+            false => envs[k].rotation_deg,
+        };
+        (k, rotation)
+    }
+
+    /// The environment of a [`lighting`](Self::lighting) choice.
+    fn environment(&self, (k, rotation): (usize, f32)) -> crate::scene::environment::Environment {
+        let mut env = self.job.environments[k].clone();
+        env.rotation_deg = rotation;
+        env
+    }
+
+    /// Render and write one view; `None` when `stop` ended it (nothing
+    /// written). Returns the seconds tracing paths and the seconds on the
+    /// rest.
+    fn view(
+        &self,
+        renderer: &mut Renderer,
+        view: &View,
+        denoiser: &mut Option<Denoiser>,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<(f64, f64)>> {
+        let (w, h) = (self.job.render.width, self.job.render.height);
+        renderer.set_view(&view.pose.camera(view.n, w, h), view.seed);
+        let t = Instant::now();
+        let mut film = renderer.new_film();
+        if renderer
+            .render_samples_or_stop(0..self.job.render.spp, &mut film, stop)
+            .is_none()
+        {
+            return Ok(None);
+        }
+        let render_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let aovs = film.aov_images();
+        let layer = |a: Aov| aovs.iter().find(|(x, _)| *x == a).map(|(_, p)| &p[..]);
+        let mut rgb = film.to_rgb();
+        if let Some(d) = denoiser {
+            let aux = Aux {
+                albedo: layer(Aov::Albedo).expect("denoise accumulates albedo"),
+                normal: layer(Aov::Normal).expect("denoise accumulates normal"),
+            };
+            rgb = d.denoise(w, h, &rgb, Some(aux))?;
+        }
+        let files = self.files(view.index);
+        let mut names = files.iter();
+        let o = &self.job.outputs;
+        if o.png {
+            let path = self.dir.join(names.next().expect("named"));
+            crate::output::write_image_viewed(&path, w, h, &rgb, ViewTransform::default())?;
+        }
+        if o.exr {
+            let path = self.dir.join(names.next().expect("named"));
+            crate::output::write_exr_layers(&path, w, h, &rgb, &[])?;
+        }
+        for aov in o.aovs.iter() {
+            let path = self.dir.join(names.next().expect("named"));
+            let pixels = layer(aov).expect("accumulated");
+            self.write_aov(&path, aov, pixels, view)?;
+        }
+        self.write_record(view, &files)?;
+        Ok(Some((render_seconds, t.elapsed().as_secs_f64())))
+    }
+
+    /// Write AOV `aov` of a view as an EXR: depth (`Z`, in the job's world
+    /// units), normal (`X`, `Y`, `Z`, world or camera axes), albedo (`R`,
+    /// `G`, `B`), with its convention in the header.
+    fn write_aov(&self, path: &Path, aov: Aov, pixels: &[[f32; 3]], view: &View) -> Result<()> {
+        let (w, h) = (self.job.render.width, self.job.render.height);
+        let s = view.n.scale;
+        let p = view.pose;
+        let (channels, planes, note): (&[&str], Vec<Vec<f32>>, &str) = match aov {
+            Aov::Depth => (
+                &["Z"],
+                vec![pixels.iter().map(|d| d[0] * s).collect()],
+                "depth: distance from the camera centre along the ray to the first hit (not z), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
+            ),
+            Aov::Normal if self.job.outputs.camera_normals => {
+                let cam = |n: &[f32; 3]| {
+                    let n = Vec3::from_array(*n);
+                    [p.right.dot(n), -p.up.dot(n), p.forward.dot(n)]
+                };
+                let c: Vec<[f32; 3]> = pixels.iter().map(cam).collect();
+                (
+                    &["X", "Y", "Z"],
+                    (0..3).map(|k| c.iter().map(|v| v[k]).collect()).collect(),
+                    "normal: shading normal at the first non-specular hit, camera axes (OpenCV: x right, y down, z forward), mean over samples, not renormalised, 0 where none",
+                )
+            }
+            Aov::Normal => (
+                &["X", "Y", "Z"],
+                (0..3)
+                    .map(|k| pixels.iter().map(|v| v[k]).collect())
+                    .collect(),
+                "normal: shading normal at the first non-specular hit, world axes, mean over samples, not renormalised, 0 where none",
+            ),
+            _ => (
+                &["R", "G", "B"],
+                (0..3)
+                    .map(|k| pixels.iter().map(|v| v[k]).collect())
+                    .collect(),
+                "albedo: reflectance at the first non-specular hit, linear, mean over samples",
+            ),
+        };
+        write_exr_channels(path, (w, h), channels, planes, note)
+    }
+
+    /// The view's record: written last, so it exists only when every file
+    /// of the view is whole.
+    fn write_record(&self, view: &View, files: &[String]) -> Result<()> {
+        let mut hashes = serde_json::Map::new();
+        for name in files {
+            let hash = file_hash(&self.dir.join(name)).ok_or_else(|| {
+                Error::Settings(format!(
+                    "{}: written but cannot be read back",
+                    self.dir.join(name).display()
+                ))
+            })?;
+            hashes.insert(name.clone(), hash.into());
+        }
+        let record = serde_json::json!({
+            "view": view.index,
+            "job": format!("{:032x}", self.job_hash),
+            "asset": format!("{:032x}", view.asset_hash),
+            "seed": view.seed,
+            "files": hashes,
+        });
+        write_text(&self.record_path(view.index), &(record.to_string() + "\n"))
+    }
+}
+
+/// A view to render.
+struct View<'a> {
+    index: u32,
+    pose: &'a Pose,
+    n: &'a Normalisation,
+    seed: u64,
+    asset_hash: u128,
+}
+
+/// The hex xxh3-128 hash of a file's bytes; `None` when it cannot be read.
+pub fn file_hash(path: &Path) -> Option<String> {
+    let bytes = std::fs::read(path).ok()?;
+    Some(format!("{:032x}", xxhash_rust::xxh3::xxh3_128(&bytes)))
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    Ok(write_atomic(path, |w| w.write_all(text.as_bytes()))?)
+}
+
+/// Write a single-part float EXR of the named channels, atomically, with
+/// `note` as its `wavetrace` header attribute.
+fn write_exr_channels(
+    path: &Path,
+    (width, height): (u32, u32),
+    names: &[&str],
+    planes: Vec<Vec<f32>>,
+    note: &str,
+) -> Result<()> {
+    use exr::prelude::*;
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (name, plane) in names.iter().zip(planes) {
+        list.push(AnyChannel::new(*name, FlatSamples::F32(plane)));
+    }
+    let mut attributes = LayerAttributes::default();
+    attributes.other.insert(
+        Text::from("wavetrace"),
+        AttributeValue::Text(Text::from(note)),
+    );
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        attributes,
+        encoding,
+        AnyChannels::sort(list),
+    );
+    let image = Image::from_layer(layer);
+    Ok(write_atomic(path, |w| {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        image
+            .write()
+            .to_buffered(&mut buf)
+            .map_err(std::io::Error::other)?;
+        w.write_all(buf.get_ref())
+    })?)
+}

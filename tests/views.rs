@@ -1,0 +1,522 @@
+//! `wavetrace views` (issue 29): the camera files agree with the renders,
+//! shards and resumes give the same bytes as one run, memory stays flat
+//! over many assets, names are padded to the job's width, bad jobs are
+//! refused with their place, broken assets are skipped and reported.
+
+mod common;
+
+use common::{TempDir, run, stderr, stdout};
+use glam::{Mat3, Vec3};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use wavetrace::render::Engine;
+use wavetrace::run::views::{ViewsOptions, ViewsReport, name_width};
+use wavetrace::scene::views_job::ViewsJob;
+
+/// Three small emissive spheres, red, green and blue, far apart, on black.
+const SPHERES: [([f32; 3], [f32; 3]); 3] = [
+    ([0.7, 0.1, -0.3], [1.0, 0.0, 0.0]),
+    ([-0.5, 0.4, 0.2], [0.0, 1.0, 0.0]),
+    ([0.1, -0.6, 0.5], [0.0, 0.0, 1.0]),
+];
+const RADIUS: f32 = 0.05;
+
+fn spheres_toml() -> String {
+    let mut s = String::from(
+        "[camera]\nposition = [0.0, 0.0, 5.0]\nforward = [0.0, 0.0, -1.0]\nup = [0.0, 1.0, 0.0]\nfocal_length_px = 64.0\nwidth = 64\nheight = 64\n\n[integrator]\nmax_depth = 1\n\n",
+    );
+    for (i, (_, c)) in SPHERES.iter().enumerate() {
+        s += &format!(
+            "[materials.m{i}]\nreflectance = [0.0, 0.0, 0.0]\nemission = [{:.1}, {:.1}, {:.1}]\n\n",
+            4.0 * c[0],
+            4.0 * c[1],
+            4.0 * c[2]
+        );
+    }
+    for (i, (p, _)) in SPHERES.iter().enumerate() {
+        s += &format!(
+            "[[sphere]]\nmaterial = \"m{i}\"\ncenter = [{}, {}, {}]\nradius = {RADIUS}\n\n",
+            p[0], p[1], p[2]
+        );
+    }
+    s
+}
+
+fn options(out: &Path, shard: Option<(u32, u32)>, threads: usize) -> ViewsOptions {
+    ViewsOptions {
+        out_dir: out.to_path_buf(),
+        shard,
+        threads,
+        engine: Engine::Wavefront,
+        batch_size: None,
+    }
+}
+
+fn run_job(job: &ViewsJob, o: &ViewsOptions) -> ViewsReport {
+    wavetrace::run::views::run(job, o, &|| false, &mut |_| {}).unwrap()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn f(v: &serde_json::Value) -> f32 {
+    v.as_f64().unwrap() as f32
+}
+
+/// The coverage-weighted centroid of each sphere's colour in a linear
+/// image (continuous pixel coordinates: pixel (i, j) covers [i, i+1) ×
+/// [j, j+1)), with the weight; `None` where the sphere is not seen.
+fn centroids(exr: &Path) -> Vec<Option<([f32; 2], f32)>> {
+    let img = wavetrace::output::read_image(exr).unwrap();
+    (0..3)
+        .map(|k| {
+            let (mut sum, mut wx, mut wy) = (0.0f64, 0.0f64, 0.0f64);
+            for (n, p) in img.rgb.iter().enumerate() {
+                let w = f64::from(p[k]);
+                let (x, y) = ((n as u32 % img.width) as f64, (n as u32 / img.width) as f64);
+                sum += w;
+                wx += w * (x + 0.5);
+                wy += w * (y + 0.5);
+            }
+            (sum > 0.0).then(|| ([(wx / sum) as f32, (wy / sum) as f32], sum as f32))
+        })
+        .collect()
+}
+
+/// Where NeRF's camera `frame` of `doc` (transforms.json) projects `x`,
+/// in continuous pixel coordinates.
+fn project_nerf(doc: &serde_json::Value, frame: &serde_json::Value, x: Vec3) -> [f32; 2] {
+    let m = &frame["transform_matrix"];
+    let at = |i: usize, j: usize| f(&m[i][j]);
+    let rot = Mat3::from_cols(
+        Vec3::new(at(0, 0), at(1, 0), at(2, 0)),
+        Vec3::new(at(0, 1), at(1, 1), at(2, 1)),
+        Vec3::new(at(0, 2), at(1, 2), at(2, 2)),
+    );
+    let p = Vec3::new(at(0, 3), at(1, 3), at(2, 3));
+    let c = rot.transpose() * (x - p);
+    let get = |k: &str| frame.get(k).map_or_else(|| f(&doc[k]), f);
+    [
+        get("cx") + get("fl_x") * c.x / -c.z,
+        get("cy") - get("fl_y") * c.y / -c.z,
+    ]
+}
+
+/// Where OpenCV's view `v` (cameras.json) projects `x`: `K (R x + t)`,
+/// pixel centres at integer coordinates.
+fn project_opencv(v: &serde_json::Value, x: Vec3) -> [f32; 2] {
+    let r = |i: usize| Vec3::new(f(&v["R"][i][0]), f(&v["R"][i][1]), f(&v["R"][i][2]));
+    let c = Vec3::new(r(0).dot(x), r(1).dot(x), r(2).dot(x))
+        + Vec3::new(f(&v["t"][0]), f(&v["t"][1]), f(&v["t"][2]));
+    let k = |i: usize, j: usize| f(&v["K"][i][j]);
+    [k(0, 0) * c.x / c.z + k(0, 2), k(1, 1) * c.y / c.z + k(1, 2)]
+}
+
+/// Renders the spheres with `cameras` and checks that every sphere seen
+/// whole lies where both camera files project its centre (within
+/// `tolerance` pixels). Returns the largest error seen.
+fn check_cameras(name: &str, cameras: &str, normalize: bool, extra: &[(&str, &str)]) -> f32 {
+    let dir = TempDir::new(name);
+    std::fs::write(dir.join("spheres.toml"), spheres_toml()).unwrap();
+    for (file, text) in extra {
+        std::fs::write(dir.join(file), text).unwrap();
+    }
+    let job_text = format!(
+        "[assets]\nfiles = [\"spheres.toml\"]\nnormalize = {normalize}\n\n{cameras}\n[render]\nwidth = 64\nheight = 48\nspp = 16\nintegrator = \"bsdf\"\n\n[outputs]\ncolor = [\"exr\"]\n"
+    );
+    std::fs::write(dir.join("job.toml"), job_text).unwrap();
+    let job = ViewsJob::load(&dir.join("job.toml")).unwrap();
+    let report = run_job(&job, &options(&dir.join("out"), None, 2));
+    assert_eq!(report.rendered, u64::from(job.view_count()));
+    // The spheres' centres in the job's world.
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for (p, _) in SPHERES {
+        lo = lo.min(Vec3::from(p) - RADIUS);
+        hi = hi.max(Vec3::from(p) + RADIUS);
+    }
+    let world = |p: [f32; 3]| match normalize {
+        true => (Vec3::from(p) - (lo + hi) * 0.5) / (hi - lo).max_element(),
+        false => Vec3::from(p),
+    };
+    let asset = dir.join("out/spheres");
+    let nerf = json(&asset.join("transforms.json"));
+    let cv = json(&asset.join("cameras.json"));
+    let mut worst = 0.0f32;
+    let mut seen = 0;
+    for (i, frame) in nerf["frames"].as_array().unwrap().iter().enumerate() {
+        let file = frame["file_path"].as_str().unwrap();
+        assert_eq!(cv["views"][i]["file_path"].as_str(), Some(file));
+        let found = centroids(&asset.join(file));
+        let scale = if normalize {
+            1.0 / (hi - lo).max_element()
+        } else {
+            1.0
+        };
+        for (k, (p, _)) in SPHERES.iter().enumerate() {
+            let x = world(*p);
+            let a = project_nerf(&nerf, frame, x);
+            let b = project_opencv(&cv["views"][i], x);
+            // A sphere cut by the frame or partly hidden behind another is
+            // skipped: seen whole, it covers pi (f r / z)^2 pixels of 4.
+            let v = &cv["views"][i];
+            let z = (0..3).map(|j| f(&v["R"][2][j]) * x[j]).sum::<f32>() + f(&v["t"][2]);
+            let expected =
+                4.0 * std::f32::consts::PI * (f(&v["K"][0][0]) * RADIUS * scale / z).powi(2);
+            let Some((at, weight)) = found[k] else {
+                continue;
+            };
+            if weight < 0.9 * expected {
+                continue;
+            }
+            seen += 1;
+            let e_nerf = (at[0] - a[0]).hypot(at[1] - a[1]);
+            let e_cv = (at[0] - 0.5 - b[0]).hypot(at[1] - 0.5 - b[1]);
+            worst = worst.max(e_nerf).max(e_cv);
+            assert!(
+                e_nerf < 0.25 && e_cv < 0.25,
+                "{name} view {i} sphere {k}: seen at {at:?}, transforms.json says {a:?} ({e_nerf:.3} px), K R t say {b:?} (+0.5: {e_cv:.3} px)"
+            );
+        }
+    }
+    assert!(
+        seen >= nerf["frames"].as_array().unwrap().len(),
+        "{name}: too few spheres seen ({seen})"
+    );
+    worst
+}
+
+#[test]
+fn camera_files_project_points_where_the_render_sees_them() {
+    let orbit = check_cameras(
+        "orbit",
+        "[cameras]\nkind = \"orbit\"\nviews = 4\nelevations = [15.0, -40.0]\nazimuth = 10.0\n",
+        true,
+        &[],
+    );
+    let fib = check_cameras(
+        "fibonacci",
+        "[cameras]\nkind = \"fibonacci\"\nviews = 7\nfov = 50.0\n",
+        false,
+        &[],
+    );
+    let random = check_cameras(
+        "random",
+        "[cameras]\nkind = \"random\"\nviews = 6\ndistance = [2.5, 3.5]\nfov = [35.0, 55.0]\n",
+        false,
+        &[],
+    );
+    // Hand-written cameras: down -Z from +Z, down -X from +X (turned 90°
+    // about +Y), and from above-front, tilted 30° down.
+    let (s, c) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
+    let cams = format!(
+        r#"{{"camera_angle_x": 0.9, "frames": [
+  {{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,3.5],[0,0,0,1]]}},
+  {{"transform_matrix": [[0,0,1,3.5],[0,1,0,0.2],[-1,0,0,0],[0,0,0,1]], "fl_x": 40, "w": 64}},
+  {{"transform_matrix": [[1,0,0,0],[0,{c},{s},{y}],[0,{ms},{c},{z}],[0,0,0,1]]}}
+]}}"#,
+        ms = -s,
+        y = 3.0 * s,
+        z = 3.0 * c
+    );
+    let explicit = check_cameras(
+        "explicit",
+        "[cameras]\nkind = \"explicit\"\nfile = \"cams.json\"\n",
+        true,
+        &[("cams.json", &cams)],
+    );
+    eprintln!(
+        "worst errors (px): orbit {orbit:.3}, fibonacci {fib:.3}, random {random:.3}, explicit {explicit:.3}"
+    );
+}
+
+/// Every file under `dir`, by relative path, with its bytes.
+fn tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                out.insert(
+                    p.strip_prefix(root).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+fn same_trees(a: &Path, b: &Path, what: &str) {
+    let (ta, tb) = (tree(a), tree(b));
+    assert_eq!(
+        ta.keys().collect::<Vec<_>>(),
+        tb.keys().collect::<Vec<_>>(),
+        "{what}: other files"
+    );
+    for (k, v) in &ta {
+        assert!(v == &tb[k], "{what}: {} differs", k.display());
+    }
+}
+
+/// Two assets (the spheres scene, the shipped textured GLB), random
+/// cameras and lighting, every output.
+fn two_asset_job(dir: &Path) -> ViewsJob {
+    std::fs::write(dir.join("spheres.toml"), spheres_toml()).unwrap();
+    let glb = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb");
+    std::fs::copy(glb, dir.join("textured.glb")).unwrap();
+    let text = "[assets]\nfiles = [\"*.toml.asset\", \"textured.glb\"]\nlist = \"list.txt\"\nnormalize = true\n\n[cameras]\nkind = \"random\"\nviews = 5\nfov = [30.0, 50.0]\n\n[[environment]]\ncolor = [0.2, 0.3, 0.5]\n\n[[environment]]\ncolor = [1.0, 0.9, 0.7]\nstrength = 0.5\n\n[lighting]\nrandom_rotation = true\n\n[render]\nwidth = 24\nheight = 20\nspp = 4\nmax_depth = 3\nseed = 7\n\n[outputs]\ncolor = [\"png\", \"exr\"]\naov = [\"depth\", \"normal\", \"albedo\"]\n";
+    // A glob that matches one file, and a list file naming the spheres.
+    std::fs::write(dir.join("a.toml.asset"), "not an asset: a broken one").unwrap();
+    std::fs::write(dir.join("list.txt"), "# the spheres\nspheres.toml\n").unwrap();
+    std::fs::write(dir.join("job.toml"), text).unwrap();
+    ViewsJob::load(&dir.join("job.toml")).unwrap()
+}
+
+#[test]
+fn shards_and_resumes_give_the_bytes_of_one_run() {
+    let dir = TempDir::new("shards");
+    let job = two_asset_job(&dir);
+    assert_eq!(job.assets.len(), 3);
+    let one = run_job(&job, &options(&dir.join("one"), None, 2));
+    assert_eq!((one.rendered, one.skipped), (10, 0));
+    let failed: Vec<_> = one.failed().map(|a| a.name.clone()).collect();
+    assert_eq!(
+        failed,
+        ["a.toml"],
+        "the broken asset is reported, the rest rendered"
+    );
+    // Three shards, in another order, on one thread.
+    for i in [2, 0, 1] {
+        run_job(&job, &options(&dir.join("three"), Some((i, 3)), 1));
+    }
+    same_trees(&dir.join("one"), &dir.join("three"), "1 vs 3 shards");
+    // Seven shards (more than some assets have views).
+    let mut n = 0;
+    for i in 0..7 {
+        n += run_job(&job, &options(&dir.join("seven"), Some((i, 7)), 2)).rendered;
+    }
+    assert_eq!(n, 10, "no view rendered twice or lost");
+    same_trees(&dir.join("one"), &dir.join("seven"), "1 vs 7 shards");
+
+    // Stopped inside a view (between tiles), then between views, then run
+    // again to the end.
+    let out = dir.join("stopped");
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let stop = || calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) >= 13;
+    let r = wavetrace::run::views::run(&job, &options(&out, None, 1), &stop, &mut |_| {}).unwrap();
+    assert!(r.stopped && r.rendered < 10, "{r:?}");
+    let again = run_job(&job, &options(&out, None, 2));
+    assert_eq!(again.skipped, r.rendered, "the finished views are skipped");
+    assert_eq!(again.rendered + again.skipped, 10);
+    same_trees(&dir.join("one"), &out, "stopped and resumed");
+
+    // A view's file damaged (a kill mid-write of another tool, a bad disk):
+    // that view alone is rendered again, to the same bytes.
+    let damaged = out.join("textured/3.depth.exr");
+    let bytes = std::fs::read(&damaged).unwrap();
+    std::fs::write(&damaged, &bytes[..bytes.len() / 2]).unwrap();
+    let repair = run_job(&job, &options(&out, None, 2));
+    assert_eq!((repair.rendered, repair.skipped), (1, 9));
+    same_trees(&dir.join("one"), &out, "repaired");
+}
+
+#[test]
+fn view_numbers_are_padded_to_the_job_s_width() {
+    assert_eq!(
+        [1, 9, 10, 12, 99, 100, 999, 1000, 9999, 10_000, 123_456].map(name_width),
+        [1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 6]
+    );
+    for (views, last, first) in [
+        (1000u32, "0999.png", "0000.png"),
+        (10_000, "09999.png", "00000.png"),
+    ] {
+        let dir = TempDir::new("padding");
+        std::fs::write(dir.join("spheres.toml"), spheres_toml()).unwrap();
+        std::fs::write(
+            dir.join("job.toml"),
+            format!("[assets]\nfiles = [\"spheres.toml\"]\n[cameras]\nkind = \"fibonacci\"\nviews = {views}\n[render]\nwidth = 2\nheight = 2\nspp = 1\n"),
+        )
+        .unwrap();
+        let job = ViewsJob::load(&dir.join("job.toml")).unwrap();
+        // The last of 500 shards: the last two views.
+        let r = run_job(&job, &options(&dir.join("out"), Some((499, 500)), 1));
+        assert_eq!(r.rendered, u64::from(views / 500));
+        let asset = dir.join("out/spheres");
+        assert!(asset.join(last).is_file(), "{last}");
+        let nerf = json(&asset.join("transforms.json"));
+        let frames = nerf["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), views as usize);
+        assert_eq!(frames[0]["file_path"].as_str(), Some(first));
+        assert_eq!(frames[frames.len() - 1]["file_path"].as_str(), Some(last));
+    }
+}
+
+#[test]
+fn bad_jobs_are_refused_naming_file_line_and_field() {
+    let dir = TempDir::new("bad");
+    std::fs::write(dir.join("a.glb"), b"").unwrap();
+    let good_cams = "{\"camera_angle_x\": 0.8, \"frames\": [{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}]}";
+    std::fs::write(dir.join("ok.json"), good_cams).unwrap();
+    std::fs::write(
+        dir.join("scaled.json"),
+        "{\"camera_angle_x\": 0.8, \"frames\": [{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}, {\"transform_matrix\": [[2,0,0,0],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}]}",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("nofov.json"),
+        "{\"frames\": [{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}]}",
+    )
+    .unwrap();
+    let head = "[assets]\nfiles = [\"a.glb\"]\n";
+    let cases: &[(&str, &str)] = &[
+        (
+            "[cameras]\nkind = \"orbit\"\nviews = 0\n",
+            "job.toml:5:9: field `cameras.views`",
+        ),
+        (
+            "[cameras]\nkind = \"spiral\"\nviews = 3\n",
+            "job.toml:4:8: field `cameras.kind`",
+        ),
+        (
+            "[cameras]\nkind = \"orbit\"\nviews = 3\nelevations = [95.0]\n",
+            "job.toml:6:14: field `cameras.elevations`",
+        ),
+        (
+            "[cameras]\nkind = \"random\"\nviews = 3\ndistance = [3.0, 2.0]\n",
+            "job.toml:6:12: field `cameras.distance`",
+        ),
+        ("[render]\nspp = 0\n", "job.toml:4:7: field `render.spp`"),
+        (
+            "[render]\nsamples = 4\n",
+            "job.toml:4:1: field `render.samples`",
+        ),
+        (
+            "[render]\nintegrator = \"path\"\n",
+            "job.toml:4:14: field `render.integrator`",
+        ),
+        (
+            "[outputs]\naov = [\"depth\", \"shadow\"]\n",
+            "job.toml:4:7: field `outputs.aov`",
+        ),
+        (
+            "[outputs]\ncolor = [\"jpg\"]\n",
+            "job.toml:4:9: field `outputs.color`",
+        ),
+        (
+            "[[environment]]\nstrength = -1.0\ncolor = [1.0, 1.0, 1.0]\n",
+            "job.toml:4:12: field `environment[0].strength`",
+        ),
+        (
+            "[cameras]\nkind = \"explicit\"\nfile = \"scaled.json\"\n",
+            "scaled.json: field `frames[1].transform_matrix`",
+        ),
+        (
+            "[cameras]\nkind = \"explicit\"\nfile = \"nofov.json\"\n",
+            "nofov.json: field `frames[0]`",
+        ),
+        (
+            "[cameras]\nkind = \"explicit\"\nfile = \"ok.json\"\nviews = 3\n",
+            "job.toml:6:9: field `cameras.views`",
+        ),
+    ];
+    for (i, (body, want)) in cases.iter().enumerate() {
+        let job = dir.join("job.toml");
+        std::fs::write(&job, format!("{head}{body}")).unwrap();
+        let e = ViewsJob::load(&job).unwrap_err().to_string();
+        assert!(
+            e.contains(want),
+            "case {i}: {e:?} does not contain {want:?}"
+        );
+        if i == 0 {
+            // The command says it too, before any work, with status 1.
+            let out = run(&dir, &["views", "job.toml", "--out-dir", "o"]);
+            assert_eq!(out.status.code(), Some(1));
+            assert!(stderr(&out).contains(want), "{}", stderr(&out));
+            assert!(!dir.join("o").exists());
+        }
+    }
+    let job = dir.join("job.toml");
+    std::fs::write(&job, "[assets]\nfiles = [\"*.gltf\"]\n").unwrap();
+    let e = ViewsJob::load(&job).unwrap_err().to_string();
+    assert!(
+        e.contains("job.toml:2:10: field `assets.files[0]`: no file matches"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_command_renders_shards_skips_broken_assets_and_reports() {
+    let dir = TempDir::new("cli");
+    std::fs::write(dir.join("spheres.toml"), spheres_toml()).unwrap();
+    std::fs::write(dir.join("broken.glb"), b"glTF garbage").unwrap();
+    let args = [
+        "views",
+        "--asset",
+        "spheres.toml",
+        "--asset",
+        "broken.glb",
+        "--asset",
+        "missing.ply",
+        "--orbit",
+        "3",
+        "--elevation",
+        "10,-20",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "2",
+        "--aov",
+        "depth",
+        "--out-dir",
+        "o",
+        "--stats",
+        "s.json",
+    ];
+    let out = run(&dir, &args);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "some assets failed: {}",
+        stderr(&out)
+    );
+    let err = stderr(&out);
+    assert!(
+        err.contains("failed: broken (") && err.contains("failed: missing ("),
+        "{err}"
+    );
+    assert!(
+        stdout(&out).contains("views: 6 rendered, 0 skipped"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(dir.join("o/spheres/5.png").is_file() && dir.join("o/spheres/5.depth.exr").is_file());
+    let stats = json(&dir.join("s.json"));
+    assert_eq!(stats["rendered"], 6);
+    assert_eq!(stats["failed"].as_array().unwrap().len(), 2);
+    // Run again: every view is skipped. --shard auto under a Slurm array.
+    let out = common::run_env(
+        &dir,
+        &[&args[..], &["--shard", "auto", "--shard-count", "2"]].concat(),
+        &[("SLURM_ARRAY_TASK_ID", "0")],
+    );
+    assert!(
+        stdout(&out).contains("views: 0 rendered, 6 skipped (finished earlier) of 9 (shard 0/2)"),
+        "{}",
+        stdout(&out)
+    );
+    // Flags with a job file are refused.
+    std::fs::write(
+        dir.join("job.toml"),
+        "[assets]\nfiles = [\"spheres.toml\"]\n",
+    )
+    .unwrap();
+    let out = run(&dir, &["views", "job.toml", "--out-dir", "o", "--spp", "4"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("--spp"), "{}", stderr(&out));
+}
