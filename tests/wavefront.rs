@@ -29,6 +29,11 @@ fn all_scenes() -> Vec<(String, Scene)> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // scenes/views-*.toml are `wavetrace views` jobs, not scenes.
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("views-"))
+        })
         .map(|p| (p.display().to_string(), Scene::load(&p).unwrap()))
         .collect();
     scenes.sort_by(|a, b| a.0.cmp(&b.0));
