@@ -142,6 +142,22 @@ fn check_cameras(name: &str, cameras: &str, normalize: bool, extra: &[(&str, &st
     let asset = dir.join("out/spheres");
     let nerf = json(&asset.join("transforms.json"));
     let cv = json(&asset.join("cameras.json"));
+    // A camera file's intrinsics come back as they were given.
+    if let Some((_, text)) = extra.iter().find(|(file, _)| file.ends_with(".json")) {
+        let given: serde_json::Value = serde_json::from_str(text).unwrap();
+        for (i, frame) in given["frames"].as_array().unwrap().iter().enumerate() {
+            for key in ["fl_x", "fl_y", "cx", "cy"] {
+                if let Some(want) = frame.get(key) {
+                    let out = &nerf["frames"][i];
+                    let got = out.get(key).map_or_else(|| f(&nerf[key]), f);
+                    assert!(
+                        (got - f(want)).abs() < 1e-3,
+                        "frame {i} {key}: {got} vs {want}"
+                    );
+                }
+            }
+        }
+    }
     let mut worst = 0.0f32;
     let mut seen = 0;
     for (i, frame) in nerf["frames"].as_array().unwrap().iter().enumerate() {
@@ -158,11 +174,11 @@ fn check_cameras(name: &str, cameras: &str, normalize: bool, extra: &[(&str, &st
             let a = project_nerf(&nerf, frame, x);
             let b = project_opencv(&cv["views"][i], x);
             // A sphere cut by the frame or partly hidden behind another is
-            // skipped: seen whole, it covers pi (f r / z)^2 pixels of 4.
+            // skipped: seen whole, it covers pi fx fy (r / z)^2 pixels of 4.
             let v = &cv["views"][i];
             let z = (0..3).map(|j| f(&v["R"][2][j]) * x[j]).sum::<f32>() + f(&v["t"][2]);
-            let expected =
-                4.0 * std::f32::consts::PI * (f(&v["K"][0][0]) * RADIUS * scale / z).powi(2);
+            let (fx, fy) = (f(&v["K"][0][0]), f(&v["K"][1][1]));
+            let expected = 4.0 * std::f32::consts::PI * fx * fy * (RADIUS * scale / z).powi(2);
             let Some((at, weight)) = found[k] else {
                 continue;
             };
@@ -207,13 +223,15 @@ fn camera_files_project_points_where_the_render_sees_them() {
         &[],
     );
     // Hand-written cameras: down -Z from +Z, down -X from +X (turned 90°
-    // about +Y), and from above-front, tilted 30° down.
+    // about +Y), from above-front, tilted 30° down, and the first again
+    // with a general K (fl_x != fl_y, the principal point off the centre).
     let (s, c) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
     let cams = format!(
         r#"{{"camera_angle_x": 0.9, "frames": [
   {{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,3.5],[0,0,0,1]]}},
   {{"transform_matrix": [[0,0,1,3.5],[0,1,0,0.2],[-1,0,0,0],[0,0,0,1]], "fl_x": 40, "w": 64}},
-  {{"transform_matrix": [[1,0,0,0],[0,{c},{s},{y}],[0,{ms},{c},{z}],[0,0,0,1]]}}
+  {{"transform_matrix": [[1,0,0,0],[0,{c},{s},{y}],[0,{ms},{c},{z}],[0,0,0,1]]}},
+  {{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,3.5],[0,0,0,1]], "fl_x": 46, "fl_y": 38, "cx": 37.5, "cy": 20.25, "w": 64, "h": 48}}
 ]}}"#,
         ms = -s,
         y = 3.0 * s,

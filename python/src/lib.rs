@@ -39,16 +39,17 @@ fn settings_error(message: String) -> PyErr {
 }
 
 /// A pinhole camera: a position, a viewing direction, an up direction and
-/// a vertical field of view; the image's pixels are square and its centre
-/// is on the axis.
+/// either a vertical field of view (at any image size) or OpenCV
+/// intrinsics (for the size they were given at, scaled with the height at
+/// other sizes). The conventions are the core camera's
+/// (`wavetrace::scene::camera::Camera`), shared with `wavetrace views`.
 #[pyclass(frozen, module = "wavetrace._wavetrace")]
 #[derive(Clone)]
 struct Camera {
-    position: Vec3,
-    forward: Vec3,
-    up: Vec3,
-    right: Vec3,
-    fov_y: f32,
+    /// The frame, and the intrinsics where `fov_y` is `None`.
+    core: CoreCamera,
+    /// The vertical field of view in degrees, kept at every image size.
+    fov_y: Option<f32>,
 }
 
 fn vec3(v: [f64; 3], what: &str) -> PyResult<Vec3> {
@@ -70,51 +71,53 @@ fn check_fov(fov_y: f64) -> PyResult<f32> {
     }
 }
 
+/// The core camera's frame (`right = forward × up`, made orthonormal).
+fn frame(
+    position: Vec3,
+    forward: Vec3,
+    up: Vec3,
+    focal: f32,
+    size: (u32, u32),
+) -> PyResult<CoreCamera> {
+    CoreCamera::new(position, forward, up, focal, size.0, size.1).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "a camera needs a viewing direction and an up direction that are not parallel: forward {forward}, up {up}"
+        ))
+    })
+}
+
 impl Camera {
-    fn new(position: Vec3, forward: Vec3, up: Vec3, fov_y: f32) -> PyResult<Self> {
-        // The core camera makes the frame orthonormal (right = forward × up).
-        let core = CoreCamera::new(position, forward, up, 1.0, 1, 1).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "a camera needs a viewing direction and an up direction that are not parallel: forward {forward}, up {up}"
-            ))
-        })?;
+    fn with_fov(position: Vec3, forward: Vec3, up: Vec3, fov_y: f32) -> PyResult<Self> {
         Ok(Self {
-            position,
-            forward: core.forward,
-            up: core.up,
-            right: core.right,
-            fov_y,
+            core: frame(position, forward, up, 1.0, (1, 1))?,
+            fov_y: Some(fov_y),
         })
     }
 
     fn from_core(c: &CoreCamera) -> Self {
-        let fov_y = 2.0
-            * (0.5 * c.height as f32 / c.focal_length_px)
-                .atan()
-                .to_degrees();
         Self {
-            position: c.position,
-            forward: c.forward,
-            up: c.up,
-            right: c.right,
-            fov_y,
+            core: c.clone(),
+            fov_y: None,
         }
     }
 
+    /// The camera to hand the renderer for a `width × height` render (it
+    /// scales a camera of another size itself, as the command line does).
     fn core(&self, width: u32, height: u32) -> CoreCamera {
-        CoreCamera {
-            position: self.position,
-            forward: self.forward,
-            up: self.up,
-            right: self.right,
-            focal_length_px: CoreCamera::focal_from_vfov(self.fov_y, height),
-            width,
-            height,
+        match self.fov_y {
+            Some(fov) => CoreCamera {
+                focal_length_px: CoreCamera::focal_from_vfov(fov, height),
+                width,
+                height,
+                ..self.core.clone()
+            },
+            None => self.core.clone(),
         }
     }
 
-    fn focal(&self, height: u32) -> f64 {
-        0.5 * height as f64 / (0.5 * (self.fov_y as f64).to_radians()).tan()
+    /// The camera at exactly `width × height`.
+    fn sized(&self, width: u32, height: u32) -> CoreCamera {
+        self.core(width, height).resized(width, height)
     }
 }
 
@@ -134,7 +137,7 @@ impl Camera {
     fn look_at(eye: [f64; 3], target: [f64; 3], up: [f64; 3], fov_y: f64) -> PyResult<Self> {
         let eye = vec3(eye, "eye")?;
         let target = vec3(target, "target")?;
-        Self::new(eye, target - eye, vec3(up, "up")?, check_fov(fov_y)?)
+        Self::with_fov(eye, target - eye, vec3(up, "up")?, check_fov(fov_y)?)
     }
 
     /// A camera from a 4×4 camera-to-world matrix in the OpenGL (NeRF,
@@ -157,16 +160,15 @@ impl Camera {
                 "a camera-to-world matrix's rotation must be orthonormal and right-handed (columns right, up, backward)",
             ));
         }
-        Self::new(position, -back, up, check_fov(fov_y)?)
+        Self::with_fov(position, -back, up, check_fov(fov_y)?)
     }
 
     /// A camera from OpenCV's intrinsics `K` (3×3) and extrinsics `R`
     /// (3×3), `t` (3): a world point `X` is at `R X + t` in the camera's
     /// frame (x right, y down, z forward) and at pixel `K (R X + t)` after
-    /// the division by z, with integer pixel coordinates at pixel centres.
-    /// wavetrace's camera has square pixels and its axis through the
-    /// image's centre: `fx = fy` and `(cx, cy) = ((width − 1)/2,
-    /// (height − 1)/2)`, else the camera is refused.
+    /// the division by z, with integer pixel coordinates at pixel centres,
+    /// for an image of `width` × `height` pixels. Any positive `fx`, `fy`
+    /// and any principal point; no skew.
     #[staticmethod]
     #[pyo3(name = "from_opencv")]
     fn from_opencv(
@@ -177,23 +179,23 @@ impl Camera {
         height: u32,
     ) -> PyResult<Self> {
         let (fx, fy, cx, cy) = (k[0][0], k[1][1], k[0][2], k[1][2]);
-        let expect = ((width as f64 - 1.0) / 2.0, (height as f64 - 1.0) / 2.0);
-        if !(fx > 0.0 && fy > 0.0 && fx.is_finite() && fy.is_finite())
-            || (fx - fy).abs() > 1e-6 * fx
-        {
+        if width == 0 || height == 0 {
             return Err(PyValueError::new_err(format!(
-                "wavetrace's pixels are square: K needs fx = fy > 0 (got fx = {fx}, fy = {fy})"
+                "the image size must be positive: got {width}×{height}"
             )));
         }
-        if (cx - expect.0).abs() > 1e-3
-            || (cy - expect.1).abs() > 1e-3
+        if !(fx > 0.0 && fy > 0.0 && fx.is_finite() && fy.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "K needs positive, finite focal lengths: got fx = {fx}, fy = {fy}"
+            )));
+        }
+        if !(cx.is_finite() && cy.is_finite())
             || k[0][1] != 0.0
             || k[1][0] != 0.0
             || k[2] != [0.0, 0.0, 1.0]
         {
             return Err(PyValueError::new_err(format!(
-                "wavetrace's camera axis goes through the image's centre: K needs no skew and (cx, cy) = ({}, {}) for a {width}×{height} image (OpenCV's pixel centres are integers); got ({cx}, {cy})",
-                expect.0, expect.1
+                "K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with a finite principal point (wavetrace's pixels have no skew): got {k:?}"
             )));
         }
         let row = |i: usize| vec3(r[i], "R");
@@ -206,66 +208,58 @@ impl Camera {
         let t = vec3(t, "t")?;
         // X = Rᵀ (x_cam − t): the camera's centre is at −Rᵀ t.
         let position = -(x * t.x + y * t.y + z * t.z);
-        let fov_y = 2.0 * (0.5 * height as f64 / fy).atan().to_degrees();
-        Self::new(position, z, -y, check_fov(fov_y)?)
+        let core = frame(position, z, -y, fy as f32, (width, height))?
+            .with_intrinsics(fx as f32, fy as f32, cx as f32, cy as f32)
+            .ok_or_else(|| PyValueError::new_err(format!("K is out of range: {k:?}")))?;
+        Ok(Self { core, fov_y: None })
     }
 
     /// The camera's position in world space.
     #[getter]
     fn position(&self) -> [f32; 3] {
-        self.position.to_array()
+        self.core.position.to_array()
     }
 
     /// The unit viewing direction.
     #[getter]
     fn forward(&self) -> [f32; 3] {
-        self.forward.to_array()
+        self.core.forward.to_array()
     }
 
     /// The unit up direction of the image (orthogonal to `forward`).
     #[getter]
     fn up(&self) -> [f32; 3] {
-        self.up.to_array()
+        self.core.up.to_array()
     }
 
-    /// The vertical field of view in degrees.
+    /// The vertical field of view in degrees (of a centred image).
     #[getter]
     fn fov_y(&self) -> f32 {
-        self.fov_y
+        self.fov_y.unwrap_or_else(|| {
+            let c = &self.core;
+            2.0 * (0.5 * c.height as f32 / c.focal_length_px)
+                .atan()
+                .to_degrees()
+        })
     }
 
     /// The 4×4 camera-to-world matrix, OpenGL convention (as
     /// `from_matrix` takes it).
     fn matrix(&self) -> [[f64; 4]; 4] {
-        let (r, u, b, p) = (self.right, self.up, -self.forward, self.position);
-        let c = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
-        let (r, u, b, p) = (c(r), c(u), c(b), c(p));
-        [
-            [r[0], u[0], b[0], p[0]],
-            [r[1], u[1], b[1], p[1]],
-            [r[2], u[2], b[2], p[2]],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
+        self.core.camera_to_world().map(|row| row.map(f64::from))
     }
 
     /// OpenCV's intrinsics `K` for an image of `width` × `height` pixels.
     fn intrinsics(&self, width: u32, height: u32) -> [[f64; 3]; 3] {
-        let f = self.focal(height);
-        [
-            [f, 0.0, (width as f64 - 1.0) / 2.0],
-            [0.0, f, (height as f64 - 1.0) / 2.0],
-            [0.0, 0.0, 1.0],
-        ]
+        let k = self.sized(width, height).opencv_k();
+        k.map(|row| row.map(f64::from))
     }
 
     /// OpenCV's extrinsics `(R, t)` (world to camera: x right, y down,
     /// z forward).
     fn extrinsics(&self) -> ([[f64; 3]; 3], [f64; 3]) {
-        let c = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
-        let r = [c(self.right), c(-self.up), c(self.forward)];
-        let p = c(self.position);
-        let t = std::array::from_fn(|i| -(r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2]));
-        (r, t)
+        let (r, t) = self.core.opencv_rt();
+        (r.map(|row| row.map(f64::from)), t.map(f64::from))
     }
 
     /// Where the world point `point` is seen in an image of `width` ×
@@ -273,25 +267,17 @@ impl Camera {
     /// `(i, j)` covers `[i, i + 1) × [j, j + 1)`, row 0 at the top), or
     /// `None` behind the camera.
     fn project(&self, point: [f64; 3], width: u32, height: u32) -> Option<(f64, f64)> {
-        let d = vec3(point, "point").ok()? - self.position;
-        let z = d.dot(self.forward) as f64;
-        if z <= 0.0 {
-            return None;
-        }
-        let f = self.focal(height);
-        Some((
-            width as f64 / 2.0 + f * d.dot(self.right) as f64 / z,
-            height as f64 / 2.0 - f * d.dot(self.up) as f64 / z,
-        ))
+        let p = vec3(point, "point").ok()?;
+        self.sized(width, height).project(p).map(|[x, y]| (x, y))
     }
 
     fn __repr__(&self) -> String {
         format!(
             "Camera(position={:?}, forward={:?}, up={:?}, fov_y={})",
-            self.position.to_array(),
-            self.forward.to_array(),
-            self.up.to_array(),
-            self.fov_y
+            self.position(),
+            self.forward(),
+            self.up(),
+            self.fov_y()
         )
     }
 }

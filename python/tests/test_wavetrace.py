@@ -150,19 +150,27 @@ def cameras(center):
     w, h = 64, 48
     r, t = look.extrinsics()
     yield "from_opencv", Camera.from_opencv(look.intrinsics(w, h), r, t, w, h)
+    # A general K: fx != fy and the principal point off the centre.
+    k = np.array(look.intrinsics(w, h))
+    k[0, 0] *= 1.15
+    k[0, 2] += 5.3
+    k[1, 2] -= 4.1
+    yield "from_opencv off-centre", Camera.from_opencv(k, r, t, w, h)
 
 
 @pytest.mark.parametrize("point", [(0.3, 0.2, 0.1), (-0.4, -0.25, 0.3), (0.0, 0.0, 0.0)])
-def test_a_known_point_projects_where_the_render_sees_it(tmp_path, point):
+@pytest.mark.parametrize("size", [(64, 48), (96, 72)])
+def test_a_known_point_projects_where_the_render_sees_it(tmp_path, point, size):
     scene = marker_scene(tmp_path, point)
+    w, h = size
     for name, camera in cameras(point):
-        image = scene.render(camera, spp=16, width=64, height=48, integrator="bsdf")["color"]
+        image = scene.render(camera, spp=16, width=w, height=h, integrator="bsdf")["color"]
         seen = bright_spot(image)
-        projected = camera.project(point, 64, 48)
+        projected = camera.project(point, w, h)
         assert projected is not None
-        assert math.dist(seen, projected) < 0.75, (name, seen, projected)
+        assert math.dist(seen, projected) < 0.75, (name, size, seen, projected)
         # OpenCV's K, R, t: pixel centres at integers.
-        k = np.array(camera.intrinsics(64, 48))
+        k = np.array(camera.intrinsics(w, h))
         r, t = (np.array(m) for m in camera.extrinsics())
         x = k @ (r @ np.array(point) + t)
         assert math.dist((x[0] / x[2] + 0.5, x[1] / x[2] + 0.5), projected) < 1e-3, name
@@ -188,9 +196,17 @@ def test_cameras_round_trip_and_bad_cameras_are_refused():
     with pytest.raises(ValueError, match="orthonormal"):
         Camera.from_matrix(scaled)
     k = np.array(cam.intrinsics(100, 80))
-    k[0, 2] += 3
-    with pytest.raises(ValueError, match="centre"):
-        Camera.from_opencv(k, r, t, 100, 80)
+    k[0, 0] *= 1.2
+    k[1, 2] += 3
+    general = Camera.from_opencv(k, r, t, 100, 80)
+    assert np.allclose(general.intrinsics(100, 80), k, rtol=1e-6)
+    assert np.allclose(general.intrinsics(200, 160), k * [[2], [2], [1]] + [[0, 0, 0.5], [0, 0, 0.5], [0, 0, 0]], rtol=1e-6)
+    skewed = k.copy()
+    skewed[0, 1] = 0.5
+    with pytest.raises(ValueError, match="skew"):
+        Camera.from_opencv(skewed, r, t, 100, 80)
+    with pytest.raises(ValueError, match="focal"):
+        Camera.from_opencv(k * [[-1], [1], [1]], r, t, 100, 80)
 
 
 # --- errors are exceptions with the command line's messages ---------------

@@ -10,7 +10,7 @@ class WavetraceError(Exception):
     """A scene, setting or file wavetrace refuses; the command line's message."""
 
 class Camera:
-    """A pinhole camera with square pixels and its axis through the image's centre."""
+    """A pinhole camera: a field of view (any image size), or OpenCV intrinsics (fx, fy, cx, cy; no skew)."""
 
     @staticmethod
     def look_at(eye: Vec3, target: Vec3, up: Vec3 = ..., fov_y: float = 40.0) -> Camera: ...
@@ -19,7 +19,7 @@ class Camera:
         """From a camera-to-world matrix, OpenGL/NeRF convention (looks down -Z, +Y up)."""
     @staticmethod
     def from_opencv(k: Matrix3, r: Matrix3, t: Vec3, width: int, height: int) -> Camera:
-        """From OpenCV's K, R, t (x right, y down, z forward; pixel centres at integers)."""
+        """From OpenCV's K, R, t (x right, y down, z forward; pixel centres at integers); any fx, fy, cx, cy."""
     @property
     def position(self) -> Tuple[float, float, float]: ...
     @property

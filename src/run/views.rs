@@ -408,14 +408,13 @@ impl AssetWork<'_> {
         let colour: Vec<String> = (0..job.view_count())
             .map(|i| self.files(i)[0].clone())
             .collect();
-        let (w, h) = (job.render.width, job.render.height);
         write_text(
             &self.dir.join("transforms.json"),
-            &transforms_json(&poses, &colour, w, h),
+            &transforms_json(&poses, &colour),
         )?;
         write_text(
             &self.dir.join("cameras.json"),
-            &opencv_json(&poses, &colour, w, h),
+            &opencv_json(&poses, &colour),
         )?;
         if todo.is_empty() {
             return Ok(true);
@@ -520,7 +519,7 @@ impl AssetWork<'_> {
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(f64, f64)>> {
         let (w, h) = (self.job.render.width, self.job.render.height);
-        renderer.set_view(&view.pose.camera(view.n, w, h), view.seed);
+        renderer.set_view(&view.n.camera(view.pose), view.seed);
         let t = Instant::now();
         let mut film = renderer.new_film();
         if renderer

@@ -7,20 +7,9 @@ use crate::scene::camera::Camera;
 use crate::scene::views_job::{CameraSet, ViewsJob};
 use glam::Vec3;
 
-/// One view's camera, in the job's world (normalised when the job asks).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Pose {
-    /// Centre of projection.
-    pub position: Vec3,
-    /// Unit viewing direction.
-    pub forward: Vec3,
-    /// Unit up direction, orthogonal to `forward`.
-    pub up: Vec3,
-    /// Unit right direction, `forward × up`.
-    pub right: Vec3,
-    /// Focal length in pixels of the rendered image.
-    pub focal: f32,
-}
+/// One view's camera, in the job's world (normalised when the job asks),
+/// at the job's resolution.
+pub type Pose = Camera;
 
 /// The similarity taking an asset's own coordinates to the job's world:
 /// `p ↦ scale · (p − centre)` (identity unless the job normalises).
@@ -36,6 +25,15 @@ impl Normalisation {
     /// The asset's coordinates of the job's world point `p`.
     pub fn to_asset(&self, p: Vec3) -> Vec3 {
         p / self.scale + self.centre
+    }
+
+    /// The renderer's camera for a view's pose: the same camera in the
+    /// asset's own coordinates (the normalisation undone).
+    pub fn camera(&self, pose: &Pose) -> Camera {
+        Camera {
+            position: self.to_asset(pose.position),
+            ..pose.clone()
+        }
     }
 }
 
@@ -89,8 +87,10 @@ pub fn poses(job: &ViewsJob, lo: Vec3, hi: Vec3, camera_seed: &dyn Fn(u32) -> u6
         let half_h = (half_v.tan() * w / h).atan();
         radius / half_v.min(half_h).sin() * 1.05
     };
+    let size = (job.render.width, job.render.height);
     let focal = |vfov_deg: f32| Camera::focal_from_vfov(vfov_deg, job.render.height);
-    let look = |dir: Vec3, distance: f32, vfov: f32| look_from(target, dir, distance, focal(vfov));
+    let look =
+        |dir: Vec3, distance: f32, vfov: f32| look_from(target, dir, distance, focal(vfov), size);
     match &job.cameras {
         CameraSet::Orbit {
             views,
@@ -148,8 +148,15 @@ pub fn poses(job: &ViewsJob, lo: Vec3, hi: Vec3, camera_seed: &dyn Fn(u32) -> u6
             .map(|c| {
                 let m = &c.camera_to_world;
                 let col = |j: usize| Vec3::new(m[0][j], m[1][j], m[2][j]);
-                let focal = 0.5 * w / (0.5 * c.angle_x).tan();
-                oriented(col(3), -col(2), col(1), focal)
+                let k = &c.intrinsics;
+                let fx = 0.5 * w / (0.5 * k.angle_x).tan();
+                let [ox, oy] = k.principal_offset;
+                let pose = oriented(col(3), -col(2), col(1), fx * k.focal_aspect_y, size);
+                Camera {
+                    focal_aspect: 1.0 / k.focal_aspect_y,
+                    principal_offset_px: [ox * w, oy * h],
+                    ..pose
+                }
             })
             .collect(),
     }
@@ -168,105 +175,53 @@ pub fn direction(e: f32, a: f32) -> Vec3 {
 
 /// A camera `distance` from `target` in direction `dir`, looking at it,
 /// +Y up (+Z where it looks straight up or down).
-fn look_from(target: Vec3, dir: Vec3, distance: f32, focal: f32) -> Pose {
+fn look_from(target: Vec3, dir: Vec3, distance: f32, focal: f32, size: (u32, u32)) -> Pose {
     let dir = dir.normalize();
-    oriented(target + dir * distance, -dir, Vec3::Y, focal)
+    oriented(target + dir * distance, -dir, Vec3::Y, focal, size)
 }
 
-/// The pose at `position` looking along `forward` with up hint `up`, made
-/// orthonormal as [`Camera::new`] makes it (so the pose written is the one
-/// rendered).
-fn oriented(position: Vec3, forward: Vec3, up: Vec3, focal: f32) -> Pose {
+/// The pose at `position` looking along `forward` with up hint `up` (+Z
+/// where `up` is along `forward`), square pixels, a centred axis.
+fn oriented(position: Vec3, forward: Vec3, up: Vec3, focal: f32, (w, h): (u32, u32)) -> Pose {
     let up = if forward.normalize().cross(up).length() < 1e-3 {
         Vec3::Z
     } else {
         up
     };
-    let c =
-        Camera::new(position, forward, up, focal, 1, 1).expect("a non-zero forward, not along up");
-    Pose {
-        position,
-        forward: c.forward,
-        up: c.up,
-        right: c.right,
-        focal,
-    }
-}
-
-impl Pose {
-    /// The renderer's camera for this pose, in the asset's own
-    /// coordinates (`n` undone), for a `width × height` image.
-    pub fn camera(&self, n: &Normalisation, width: u32, height: u32) -> Camera {
-        Camera {
-            position: n.to_asset(self.position),
-            forward: self.forward,
-            up: self.up,
-            right: self.right,
-            focal_length_px: self.focal,
-            width,
-            height,
-        }
-    }
-
-    /// Camera to world (rows), NeRF's and OpenGL's axes: the camera looks
-    /// down its −Z, +Y is up, +X right.
-    pub fn camera_to_world(&self) -> [[f32; 4]; 4] {
-        let (r, u, b, p) = (self.right, self.up, -self.forward, self.position);
-        [
-            [r.x, u.x, b.x, p.x],
-            [r.y, u.y, b.y, p.y],
-            [r.z, u.z, b.z, p.z],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    }
-
-    /// OpenCV's world-to-camera rotation `R` (rows: x right, y down, z
-    /// forward) and translation `t = −R·position`.
-    pub fn opencv_rt(&self) -> ([[f32; 3]; 3], [f32; 3]) {
-        let rows = [self.right, -self.up, self.forward];
-        let t = rows.map(|row| -row.dot(self.position));
-        (rows.map(|r| r.to_array()), t)
-    }
-}
-
-/// OpenCV's intrinsics `K` of a view `width × height` pixels with focal
-/// length `focal`: pixel centres at integer coordinates, so the principal
-/// point is `((W − 1)/2, (H − 1)/2)`.
-pub fn opencv_k(focal: f32, width: u32, height: u32) -> [[f32; 3]; 3] {
-    [
-        [focal, 0.0, 0.5 * width as f32 - 0.5],
-        [0.0, focal, 0.5 * height as f32 - 0.5],
-        [0.0, 0.0, 1.0],
-    ]
+    Camera::new(position, forward, up, focal, w, h).expect("a non-zero forward, not along up")
 }
 
 /// The text of an asset's `transforms.json` (NeRF / instant-ngp): the
 /// intrinsics of the first view at the top (each frame repeats its own
-/// when they differ), and a frame per view naming its colour file.
-pub fn transforms_json(poses: &[Pose], files: &[String], width: u32, height: u32) -> String {
+/// when they differ), and a frame per view naming its colour file. `cx`,
+/// `cy` are continuous pixel coordinates (`w/2, h/2` when centred).
+pub fn transforms_json(poses: &[Pose], files: &[String]) -> String {
     use serde_json::json;
-    let (w, h) = (width as f32, height as f32);
-    let intrinsics = |focal: f32| {
+    let intrinsics = |c: &Camera| {
+        let (fx, fy) = c.focal_xy();
+        let (cx, cy) = c.principal_point();
+        let (w, h) = (c.width as f32, c.height as f32);
         json!({
-            "camera_angle_x": 2.0 * (0.5 * w / focal).atan(),
-            "camera_angle_y": 2.0 * (0.5 * h / focal).atan(),
-            "fl_x": focal,
-            "fl_y": focal,
-            "cx": 0.5 * w,
-            "cy": 0.5 * h,
-            "w": width,
-            "h": height,
+            "camera_angle_x": 2.0 * (0.5 * w / fx).atan(),
+            "camera_angle_y": 2.0 * (0.5 * h / fy).atan(),
+            "fl_x": fx,
+            "fl_y": fy,
+            "cx": cx,
+            "cy": cy,
+            "w": c.width,
+            "h": c.height,
         })
     };
-    let first = poses.first().map_or(1.0, |p| p.focal);
-    let mut top = intrinsics(first);
+    let first = poses.first().map(intrinsics).unwrap_or_default();
+    let mut top = first.clone();
     let frames: Vec<serde_json::Value> = poses
         .iter()
         .zip(files)
         .map(|(p, file)| {
             let mut f = json!({ "file_path": file, "transform_matrix": p.camera_to_world() });
-            if p.focal != first
-                && let (Some(f), Some(i)) = (f.as_object_mut(), intrinsics(p.focal).as_object())
+            let own = intrinsics(p);
+            if own != first
+                && let (Some(f), Some(i)) = (f.as_object_mut(), own.as_object())
             {
                 f.extend(i.clone());
             }
@@ -279,16 +234,17 @@ pub fn transforms_json(poses: &[Pose], files: &[String], width: u32, height: u32
 
 /// The text of an asset's `cameras.json`: per view, OpenCV's `K`, `R`,
 /// `t` (world to camera; x right, y down, z forward), with the image size.
-pub fn opencv_json(poses: &[Pose], files: &[String], width: u32, height: u32) -> String {
+pub fn opencv_json(poses: &[Pose], files: &[String]) -> String {
     use serde_json::json;
     let views: Vec<serde_json::Value> = poses
         .iter()
         .zip(files)
         .map(|(p, file)| {
             let (r, t) = p.opencv_rt();
-            json!({ "file_path": file, "K": opencv_k(p.focal, width, height), "R": r, "t": t })
+            json!({ "file_path": file, "K": p.opencv_k(), "R": r, "t": t })
         })
         .collect();
+    let (width, height) = poses.first().map_or((0, 0), |p| (p.width, p.height));
     let doc = json!({
         "convention": "OpenCV: world to camera x_cam = R x_world + t; camera x right, y down, z forward; pixel centres at integer coordinates",
         "width": width,

@@ -133,8 +133,21 @@ pub struct ExplicitCamera {
     /// Camera to world, rows of a 4×4 matrix, the OpenGL/NeRF axes (the
     /// camera looks down its −Z, +Y up, +X right).
     pub camera_to_world: [[f32; 4]; 4],
-    /// Horizontal field of view, radians.
+    /// Its intrinsics, independent of the image's size.
+    pub intrinsics: Intrinsics,
+}
+
+/// A camera file's intrinsics, as fractions so that they hold at any
+/// image size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Intrinsics {
+    /// Horizontal field of view, radians (of a centred image).
     pub angle_x: f32,
+    /// `fl_y / fl_x` (1: square pixels).
+    pub focal_aspect_y: f32,
+    /// The principal point's offset from the image's centre, as fractions
+    /// of the image's width and height.
+    pub principal_offset: [f32; 2],
 }
 
 impl CameraSet {
@@ -836,8 +849,9 @@ pub fn unsupported_aov(aovs: AovSet) -> Option<super::Aov> {
 
 /// Read a JSON camera file: `frames`, each with a 4×4 camera-to-world
 /// `transform_matrix` (NeRF's axes) and, there or at the top level,
-/// `camera_angle_x` (radians) or `fl_x` with `w` (pixels). Square pixels
-/// and a centred principal point only. Errors name the JSON path.
+/// `camera_angle_x` (radians) or `fl_x` with `w` (pixels), and optionally
+/// `fl_y`, `cx` and `cy` (NeRF's: `cx = w/2` is centred). Errors name the
+/// JSON path.
 pub fn read_cameras(path: &Path) -> Result<Vec<ExplicitCamera>, SceneError> {
     let file = path.display().to_string();
     let at = |p: &str| super::builder::Origin::path(&file, p);
@@ -858,7 +872,7 @@ pub fn read_cameras(path: &Path) -> Result<Vec<ExplicitCamera>, SceneError> {
     let mut out = Vec::with_capacity(frames.len());
     for (i, f) in frames.iter().enumerate() {
         let here = format!("frames[{i}]");
-        let angle_x = intrinsics(f, &format!("{here}."), &at)?.or(top).ok_or_else(|| {
+        let intrinsics = intrinsics(f, &format!("{here}."), &at)?.or(top).ok_or_else(|| {
             at(&here).error("no field of view: give camera_angle_x (radians) or fl_x and w, here or at the top level")
         })?;
         let m = f
@@ -868,19 +882,21 @@ pub fn read_cameras(path: &Path) -> Result<Vec<ExplicitCamera>, SceneError> {
             rigid_matrix(m).map_err(|e| at(&format!("{here}.transform_matrix")).error(e))?;
         out.push(ExplicitCamera {
             camera_to_world: matrix,
-            angle_x,
+            intrinsics,
         });
     }
     Ok(out)
 }
 
-/// The horizontal field of view that object `v` gives (`camera_angle_x`,
-/// or `fl_x` with `w`), checking the rest of its intrinsics.
+/// The intrinsics object `v` gives, checking them: `camera_angle_x`, or
+/// `fl_x` with `w` (pixels); `fl_y` (with `fl_x`), `cx` (with `w`) and `cy`
+/// (with `h`) where given. `cx`, `cy` are NeRF's: continuous pixel
+/// coordinates, `(w/2, h/2)` for a centred principal point.
 fn intrinsics(
     v: &serde_json::Value,
     prefix: &str,
     at: &dyn Fn(&str) -> super::builder::Origin,
-) -> Result<Option<f32>, SceneError> {
+) -> Result<Option<Intrinsics>, SceneError> {
     let num = |k: &str| -> Result<Option<f64>, SceneError> {
         match v.get(k) {
             None => Ok(None),
@@ -891,27 +907,16 @@ fn intrinsics(
         }
     };
     let (w, h) = (num("w")?, num("h")?);
-    if let (Some(fx), Some(fy)) = (num("fl_x")?, num("fl_y")?)
-        && (fx - fy).abs() > 1e-4 * fx.abs()
-    {
-        return Err(at(&format!("{prefix}fl_y")).error(format!(
-            "{fy} differs from fl_x {fx}: only square pixels are rendered"
-        )));
-    }
-    for (key, size) in [("cx", w), ("cy", h)] {
-        if let (Some(c), Some(size)) = (num(key)?, size)
-            && (c - size / 2.0).abs() > 0.5 + 1e-3
-        {
-            return Err(at(&format!("{prefix}{key}")).error(format!(
-                "{c}: the principal point must be the image's centre ({})",
-                size / 2.0
-            )));
+    for (key, size) in [("w", w), ("h", h)] {
+        if size.is_some_and(|s| s <= 0.0) {
+            return Err(at(&format!("{prefix}{key}")).error("must be positive (pixels)"));
         }
     }
-    let angle = match (num("camera_angle_x")?, num("fl_x")?) {
+    let (fx, fy) = (num("fl_x")?, num("fl_y")?);
+    let angle = match (num("camera_angle_x")?, fx) {
         (Some(a), _) => Some((a, "camera_angle_x")),
         (None, Some(fx)) => match w {
-            Some(w) if fx > 0.0 && w > 0.0 => Some((2.0 * (w / (2.0 * fx)).atan(), "fl_x")),
+            Some(w) if fx > 0.0 => Some((2.0 * (w / (2.0 * fx)).atan(), "fl_x")),
             _ => {
                 return Err(
                     at(&format!("{prefix}fl_x")).error("needs a positive fl_x and w (pixels)")
@@ -920,13 +925,42 @@ fn intrinsics(
         },
         (None, None) => None,
     };
-    match angle {
-        Some((a, _)) if a > 0.0 && a < std::f64::consts::PI => Ok(Some(a as f32)),
-        Some((a, key)) => Err(at(&format!("{prefix}{key}")).error(format!(
-            "a field of view of {a} radians: must be between 0 and pi"
-        ))),
-        None => Ok(None),
+    let angle_x = match angle {
+        Some((a, _)) if a > 0.0 && a < std::f64::consts::PI => a,
+        Some((a, key)) => {
+            return Err(at(&format!("{prefix}{key}")).error(format!(
+                "a field of view of {a} radians: must be between 0 and pi"
+            )));
+        }
+        None => return Ok(None),
+    };
+    let aspect = match (fx, fy) {
+        (Some(fx), Some(fy)) if fy > 0.0 && fx > 0.0 => fy / fx,
+        (_, Some(fy)) => {
+            return Err(at(&format!("{prefix}fl_y")).error(format!(
+                "{fy}: needs a positive fl_y beside a positive fl_x"
+            )));
+        }
+        _ => 1.0,
+    };
+    let mut offset = [0.0f32; 2];
+    for (i, (key, size)) in [("cx", w), ("cy", h)].into_iter().enumerate() {
+        match (num(key)?, size) {
+            (Some(c), Some(size)) => offset[i] = (c / size - 0.5) as f32,
+            (Some(_), None) => {
+                return Err(at(&format!("{prefix}{key}")).error(format!(
+                    "needs the image's size {} (pixels) beside it",
+                    ["w", "h"][i]
+                )));
+            }
+            _ => {}
+        }
     }
+    Ok(Some(Intrinsics {
+        angle_x: angle_x as f32,
+        focal_aspect_y: aspect as f32,
+        principal_offset: offset,
+    }))
 }
 
 /// A 4×4 rigid transform (rows): a rotation and a translation, last row
