@@ -251,7 +251,19 @@ pub fn write_rgba_png(
             }
         })
         .collect();
-    let colour = view.bytes(&straight);
+    write_rgba_png_straight(path, (width, height), &straight, alpha, view)
+}
+
+/// Write an RGBA PNG, atomically: the colour `rgb` as it is (straight, or
+/// an opaque background's colour) through `view`, and `alpha` as 8 bits.
+pub fn write_rgba_png_straight(
+    path: &Path,
+    (width, height): (u32, u32),
+    rgb: &[[f32; 3]],
+    alpha: &[[f32; 3]],
+    view: ViewTransform,
+) -> Result<()> {
+    let colour = view.bytes(rgb);
     let mut bytes = Vec::with_capacity(colour.len() / 3 * 4);
     for (c, a) in colour.chunks_exact(3).zip(alpha) {
         bytes.extend_from_slice(c);

@@ -281,12 +281,13 @@ fn same_trees(a: &Path, b: &Path, what: &str) {
 }
 
 /// Two assets (the spheres scene, the shipped textured GLB), random
-/// cameras and lighting, every output.
+/// cameras and lighting, every output (the alpha, zdepth and object ids
+/// with the rest).
 fn two_asset_job(dir: &Path) -> ViewsJob {
     std::fs::write(dir.join("spheres.toml"), spheres_toml()).unwrap();
     let glb = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb");
     std::fs::copy(glb, dir.join("textured.glb")).unwrap();
-    let text = "[assets]\nfiles = [\"*.toml.asset\", \"textured.glb\"]\nlist = \"list.txt\"\nnormalize = true\n\n[cameras]\nkind = \"random\"\nviews = 5\nfov = [30.0, 50.0]\n\n[[environment]]\ncolor = [0.2, 0.3, 0.5]\n\n[[environment]]\ncolor = [1.0, 0.9, 0.7]\nstrength = 0.5\n\n[lighting]\nrandom_rotation = true\n\n[render]\nwidth = 24\nheight = 20\nspp = 4\nmax_depth = 3\nseed = 7\n\n[outputs]\ncolor = [\"png\", \"exr\"]\naov = [\"depth\", \"normal\", \"albedo\"]\n";
+    let text = "[assets]\nfiles = [\"*.toml.asset\", \"textured.glb\"]\nlist = \"list.txt\"\nnormalize = true\n\n[cameras]\nkind = \"random\"\nviews = 5\nfov = [30.0, 50.0]\n\n[[environment]]\ncolor = [0.2, 0.3, 0.5]\n\n[[environment]]\ncolor = [1.0, 0.9, 0.7]\nstrength = 0.5\n\n[lighting]\nrandom_rotation = true\n\n[render]\nwidth = 24\nheight = 20\nspp = 4\nmax_depth = 3\nseed = 7\n\n[outputs]\ncolor = [\"png\", \"exr\"]\naov = [\"depth\", \"normal\", \"albedo\", \"zdepth\", \"object_id\", \"alpha\"]\n";
     // A glob that matches one file, and a list file naming the spheres.
     std::fs::write(dir.join("a.toml.asset"), "not an asset: a broken one").unwrap();
     std::fs::write(dir.join("list.txt"), "# the spheres\nspheres.toml\n").unwrap();
@@ -334,11 +335,14 @@ fn shards_and_resumes_give_the_bytes_of_one_run() {
 
     // A view's file damaged (a kill mid-write of another tool, a bad disk):
     // that view alone is rendered again, to the same bytes.
-    let damaged = out.join("textured/3.depth.exr");
-    let bytes = std::fs::read(&damaged).unwrap();
-    std::fs::write(&damaged, &bytes[..bytes.len() / 2]).unwrap();
+    // (An AOV EXR of one view, the object-id PNG of another.)
+    for damaged in ["textured/3.depth.exr", "spheres/1.object_id.png"] {
+        let damaged = out.join(damaged);
+        let bytes = std::fs::read(&damaged).unwrap();
+        std::fs::write(&damaged, &bytes[..bytes.len() / 2]).unwrap();
+    }
     let repair = run_job(&job, &options(&out, None, 2));
-    assert_eq!((repair.rendered, repair.skipped), (1, 9));
+    assert_eq!((repair.rendered, repair.skipped), (2, 8));
     same_trees(&dir.join("one"), &out, "repaired");
 }
 
@@ -537,4 +541,163 @@ fn the_command_renders_shards_skips_broken_assets_and_reports() {
     let out = run(&dir, &["views", "job.toml", "--out-dir", "o", "--spp", "4"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("--spp"), "{}", stderr(&out));
+}
+
+/// A views job of a two-object TOML scene — a quad `floor` facing +Z at
+/// z = -1 over [-1, 1]², and a sphere `ball` of radius 0.5 at the origin —
+/// seen from +Z by one explicit camera, normalised (so depths are scaled),
+/// on a transparent background. Returns the asset's output folder and the
+/// camera's position in the scene's own (unnormalised) coordinates, and
+/// the normalisation's scale.
+fn two_objects(dir: &Path) -> (PathBuf, Vec3, f32) {
+    let scene = "[camera]\nposition = [0.0, 0.0, 5.0]\nforward = [0.0, 0.0, -1.0]\nup = [0.0, 1.0, 0.0]\nfocal_length_px = 64.0\nwidth = 8\nheight = 8\n\n[materials.grey]\nreflectance = [0.5, 0.5, 0.5]\n\n[[quad]]\nname = \"floor\"\nmaterial = \"grey\"\nvertices = [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0]]\n\n[[sphere]]\nname = \"ball\"\nmaterial = \"grey\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.5\n";
+    std::fs::write(dir.join("two.toml"), scene).unwrap();
+    // The camera in the normalised world (centre (0, 0, -0.25), scale 0.5),
+    // 2 units in front of it, looking down -Z, 40° across.
+    let cams = r#"{"camera_angle_x": 0.6981317, "frames": [
+  {"transform_matrix": [[1,0,0,0.1],[0,1,0,-0.05],[0,0,1,2],[0,0,0,1]]} ]}"#;
+    std::fs::write(dir.join("cams.json"), cams).unwrap();
+    let job = "[assets]\nfiles = [\"two.toml\"]\nnormalize = true\n\n[cameras]\nkind = \"explicit\"\nfile = \"cams.json\"\n\n[[environment]]\ncolor = [1.0, 1.0, 1.0]\nvisible = false\n\n[render]\nwidth = 48\nheight = 48\nspp = 16\nmax_depth = 2\n\n[outputs]\ncolor = [\"png\", \"exr\"]\naov = [\"object_id\", \"depth\", \"zdepth\", \"alpha\"]\n";
+    std::fs::write(dir.join("job.toml"), job).unwrap();
+    let job = ViewsJob::load(&dir.join("job.toml")).unwrap();
+    let r = run_job(&job, &options(&dir.join("out"), None, 2));
+    assert_eq!((r.rendered, r.failed().count()), (1, 0), "{r:?}");
+    let (centre, scale) = (Vec3::new(0.0, 0.0, -0.25), 0.5);
+    let eye = Vec3::new(0.1, -0.05, 2.0) / scale + centre;
+    (dir.join("out/two"), eye, scale)
+}
+
+/// The unit direction, in the world (the camera looks down -Z, unturned),
+/// of pixel `(x, y)`'s position `(x + dx, y + dy)` in a 48×48 view 40°
+/// across.
+fn pixel_ray(x: f32, y: f32) -> Vec3 {
+    let f = 24.0 / (20f32.to_radians()).tan();
+    Vec3::new((x - 24.0) / f, -(y - 24.0) / f, -1.0).normalize()
+}
+
+/// The distance along the unit ray `d` from `o` to the floor or the ball
+/// (scene coordinates), and which (1: floor, 2: ball); `None`: a miss.
+fn hit(o: Vec3, d: Vec3) -> Option<(f32, u32)> {
+    // The ball: |o + t d|² = 0.25.
+    let b = o.dot(d);
+    let disc = b * b - (o.length_squared() - 0.25);
+    if disc >= 0.0 {
+        return Some((-b - disc.sqrt(), 2));
+    }
+    let t = (-1.0 - o.z) / d.z;
+    let p = o + t * d;
+    (p.x.abs() <= 1.0 && p.y.abs() <= 1.0).then_some((t, 1))
+}
+
+/// Channel `name` of a single-part EXR, and its `wavetrace` header note.
+fn exr_channel(path: &Path, name: &str) -> (Vec<f32>, String) {
+    use exr::prelude::{ReadChannels, ReadLayers, read};
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    let layer = &image.layer_data;
+    let note = match layer
+        .attributes
+        .other
+        .get(&exr::prelude::Text::from("wavetrace"))
+    {
+        Some(exr::prelude::AttributeValue::Text(t)) => t.to_string(),
+        _ => String::new(),
+    };
+    let channel = (layer.channel_data.list.iter())
+        .find(|c| c.name.to_string() == name)
+        .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()));
+    (channel.sample_data.values_as_f32().collect(), note)
+}
+
+#[test]
+fn object_ids_alpha_and_depths_of_a_views_job_are_exact() {
+    let dir = TempDir::new("ids");
+    let (out, eye, scale) = two_objects(&dir);
+    // The legend: ids in the scene's order, named by the entries' names.
+    let legend = json(&out.join("objects.json"));
+    assert_eq!(legend["background"], 0);
+    let names: Vec<(u64, &str)> = (legend["objects"].as_array().unwrap().iter())
+        .map(|o| (o["id"].as_u64().unwrap(), o["name"].as_str().unwrap()))
+        .collect();
+    assert_eq!(names, [(1, "floor"), (2, "ball")]);
+    // The id image: 16-bit grey, the object under most of each pixel. Where
+    // the whole pixel (its four corners and centre) sees one thing, that
+    // thing's id, exactly; the centre, the ball's; the corners, nothing.
+    let ids = image::open(out.join("0.object_id.png")).unwrap();
+    assert_eq!(ids.color(), image::ColorType::L16);
+    let ids = ids.into_luma16();
+    let rgba = image::open(out.join("0.png")).unwrap();
+    assert_eq!(rgba.color(), image::ColorType::Rgba8, "alpha in the PNG");
+    let rgba = rgba.into_rgba8();
+    let (depth, note) = exr_channel(&out.join("0.depth.exr"), "Z");
+    assert!(note.starts_with("depth: distance from the camera centre along the ray"));
+    let (zdepth, note) = exr_channel(&out.join("0.zdepth.exr"), "Z");
+    assert!(note.starts_with("zdepth: distance from the camera centre along the camera's forward"));
+    let (alpha, _) = exr_channel(&out.join("0.exr"), "A");
+    let (mut counts, mut worst_depth, mut worst_z) = ([0; 3], 0f32, 0f32);
+    for y in 0..48u32 {
+        for x in 0..48u32 {
+            let (fx, fy) = (x as f32, y as f32);
+            let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)];
+            let hits: Vec<_> = (corners.iter())
+                .map(|(dx, dy)| hit(eye, pixel_ray(fx + dx, fy + dy)))
+                .collect();
+            let id = hits[0].map_or(0, |h| h.1);
+            if hits.iter().any(|h| h.map_or(0, |h| h.1) != id) {
+                continue; // an edge pixel
+            }
+            let k = (y * 48 + x) as usize;
+            counts[id as usize] += 1;
+            assert_eq!(ids.get_pixel(x, y)[0], id as u16, "id at ({x}, {y})");
+            let a = rgba.get_pixel(x, y)[3];
+            assert_eq!((a, alpha[k]), if id == 0 { (0, 0.0) } else { (255, 1.0) });
+            if id == 0 {
+                assert!(depth[k] == f32::INFINITY && zdepth[k] == f32::INFINITY);
+                continue;
+            }
+            // The analytic depths, in the normalised world, at the pixel's
+            // centre; the render's are means over the pixel, so they may
+            // differ by a share of the spread over its corners.
+            let d = pixel_ray(fx + 0.5, fy + 0.5);
+            let t = hits[4].unwrap().0;
+            let spread = (hits.iter().map(|h| h.unwrap().0).fold(f32::MIN, f32::max)
+                - hits.iter().map(|h| h.unwrap().0).fold(f32::MAX, f32::min))
+                * scale;
+            let (want_depth, want_z) = (t * scale, t * (-d.z) * scale);
+            let tol = 0.5 * spread + 1e-4;
+            let (e, ez) = (depth[k] - want_depth, zdepth[k] - want_z);
+            assert!(
+                e.abs() <= tol && ez.abs() <= tol,
+                "({x}, {y}), id {id}: depth {} want {want_depth}, zdepth {} want {want_z} (tolerance {tol})",
+                depth[k],
+                zdepth[k]
+            );
+            worst_depth = worst_depth.max(e.abs());
+            worst_z = worst_z.max(ez.abs());
+        }
+    }
+    // Most of the image is checked: background, floor and ball all seen.
+    assert!(counts.iter().all(|&n| n > 100), "{counts:?}");
+    eprintln!(
+        "pixels checked {counts:?}; worst |depth - analytic| {worst_depth:.2e}, |zdepth - analytic| {worst_z:.2e}"
+    );
+    // The files all count for the view: its record hashes each.
+    let record = json(&out.join("manifest/0.json"));
+    let files: Vec<&String> = record["files"].as_object().unwrap().keys().collect();
+    assert_eq!(
+        files,
+        [
+            "0.depth.exr",
+            "0.exr",
+            "0.object_id.png",
+            "0.png",
+            "0.zdepth.exr"
+        ]
+    );
 }

@@ -89,7 +89,7 @@ pub struct ViewsArgs {
     /// The job's seed.
     #[arg(long, value_name = "S", help_heading = "Job from flags")]
     pub seed: Option<u64>,
-    /// AOVs to write beside the colour: depth, normal, albedo.
+    /// AOVs to write beside the colour: depth, zdepth, normal, albedo, variance, object_id, alpha (in the colour files).
     #[arg(long, value_name = "LIST", value_parser = AovSet::parse_list, help_heading = "Job from flags")]
     pub aov: Option<AovSet>,
     /// Also write the colour as linear EXR.
@@ -263,12 +263,6 @@ impl ViewsArgs {
 /// when a signal stopped it (finished views are kept).
 pub fn run(args: ViewsArgs) -> Result<ExitCode> {
     let job = args.job()?;
-    if let Some(other) = crate::scene::views_job::unsupported_aov(job.outputs.aovs) {
-        return Err(Error::Settings(format!(
-            "--aov: views write albedo, normal and depth (not {} yet)",
-            other.name()
-        )));
-    }
     let env = |name: &str| std::env::var(name).ok();
     let shard = match args.shard {
         None => None,

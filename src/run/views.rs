@@ -26,6 +26,7 @@ use super::views_cameras::{
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::fs::write_atomic;
+use crate::output::ExrLayer;
 use crate::output::view::ViewTransform;
 use crate::render::{Engine, RenderSettings, Renderer};
 use crate::scene::views_job::ViewsJob;
@@ -330,7 +331,21 @@ impl AssetWork<'_> {
             files.push(format!("{n}.exr"));
         }
         for aov in o.aovs.iter() {
-            files.push(format!("{n}.{}.exr", aov.name()));
+            match aov {
+                Aov::Alpha => {} // a channel of the colour files
+                Aov::ObjectId => files.push(format!("{n}.object_id.png")),
+                _ => files.push(format!("{n}.{}.exr", aov.name())),
+            }
+        }
+        files
+    }
+
+    /// The asset's files beside its views: the camera files, and the
+    /// object-id legend when the job writes object ids.
+    fn asset_files(&self) -> Vec<&'static str> {
+        let mut files = vec!["transforms.json", "cameras.json"];
+        if self.job.outputs.aovs.contains(Aov::ObjectId) {
+            files.push(LEGEND);
         }
         files
     }
@@ -378,7 +393,8 @@ impl AssetWork<'_> {
     ) -> Result<bool> {
         let hash = asset_hash(self.path)?;
         let todo: Vec<u32> = range.clone().filter(|&i| !self.finished(i, hash)).collect();
-        let have_cameras = ["transforms.json", "cameras.json"]
+        let have_cameras = self
+            .asset_files()
             .iter()
             .all(|f| self.dir.join(f).is_file());
         for i in range.clone().filter(|i| !todo.contains(i)) {
@@ -416,6 +432,9 @@ impl AssetWork<'_> {
             &self.dir.join("cameras.json"),
             &opencv_json(&poses, &colour),
         )?;
+        if job.outputs.aovs.contains(Aov::ObjectId) {
+            write_text(&self.dir.join(LEGEND), &legend_json(&scene.objects))?;
+        }
         if todo.is_empty() {
             return Ok(true);
         }
@@ -447,6 +466,7 @@ impl AssetWork<'_> {
                 n: &n,
                 seed: view_seed(self.job_hash, hash, i),
                 asset_hash: hash,
+                transparent: scene.has_transparent_background(),
             };
             let Some((render_seconds, write_seconds)) =
                 self.view(&mut renderer, &view, denoiser, stop)?
@@ -480,6 +500,15 @@ impl AssetWork<'_> {
         s.engine = self.options.engine;
         s.batch_size = self.options.batch_size.unwrap_or(s.batch_size);
         s.aovs = self.job.outputs.aovs;
+        // A transparent background — the asset's own, or any of the job's
+        // environments (`visible = false`) — writes the coverage as the
+        // colour's alpha, as `render` does.
+        let envs = &self.job.environments;
+        if (envs.is_empty() && scene.has_transparent_background())
+            || envs.iter().any(|e| !e.visible)
+        {
+            s.aovs = s.aovs.with(Aov::Alpha);
+        }
         if r.denoise {
             s.aovs = s.aovs.union(AovSet::DENOISE);
         }
@@ -543,18 +572,46 @@ impl AssetWork<'_> {
         let files = self.files(view.index);
         let mut names = files.iter();
         let o = &self.job.outputs;
+        let alpha = layer(Aov::Alpha);
         if o.png {
             let path = self.dir.join(names.next().expect("named"));
-            crate::output::write_image_viewed(&path, w, h, &rgb, ViewTransform::default())?;
+            let view_transform = ViewTransform::default();
+            match alpha {
+                // Straight colour, as PNG defines it: the mean of the
+                // samples that hit, where the background is transparent.
+                Some(a) if view.transparent => {
+                    crate::output::write_rgba_png(&path, (w, h), &rgb, a, view_transform)?
+                }
+                // An opaque background is part of the colour.
+                Some(a) => {
+                    crate::output::write_rgba_png_straight(&path, (w, h), &rgb, a, view_transform)?
+                }
+                None => {
+                    crate::output::write_image_viewed(&path, w, h, &rgb, ViewTransform::default())?
+                }
+            }
         }
         if o.exr {
             let path = self.dir.join(names.next().expect("named"));
-            crate::output::write_exr_layers(&path, w, h, &rgb, &[])?;
+            let layers: Vec<ExrLayer> = (alpha.iter())
+                .map(|a| {
+                    let (name, channels) = crate::output::ALPHA_LAYER;
+                    ExrLayer {
+                        name,
+                        channels,
+                        pixels: a,
+                    }
+                })
+                .collect();
+            crate::output::write_exr_layers(&path, w, h, &rgb, &layers)?;
         }
-        for aov in o.aovs.iter() {
+        for aov in o.aovs.iter().filter(|a| *a != Aov::Alpha) {
             let path = self.dir.join(names.next().expect("named"));
             let pixels = layer(aov).expect("accumulated");
-            self.write_aov(&path, aov, pixels, view)?;
+            match aov {
+                Aov::ObjectId => crate::output::write_id_png(&path, w, h, pixels)?,
+                _ => self.write_aov(&path, aov, pixels, view)?,
+            }
         }
         self.write_record(view, &files)?;
         Ok(Some((render_seconds, t.elapsed().as_secs_f64())))
@@ -572,6 +629,18 @@ impl AssetWork<'_> {
                 &["Z"],
                 vec![pixels.iter().map(|d| d[0] * s).collect()],
                 "depth: distance from the camera centre along the ray to the first hit (not z), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
+            ),
+            Aov::ZDepth => (
+                &["Z"],
+                vec![pixels.iter().map(|d| d[0] * s).collect()],
+                "zdepth: distance from the camera centre along the camera's forward (optical, OpenCV +z) axis to the first hit, = depth * cos(angle of the ray to that axis), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
+            ),
+            Aov::Variance => (
+                &["R", "G", "B"],
+                (0..3)
+                    .map(|k| pixels.iter().map(|v| v[k]).collect())
+                    .collect(),
+                "variance: unbiased sample variance of the radiance per channel (of one sample; the pixel mean's is this / spp), linear",
             ),
             Aov::Normal if self.job.outputs.camera_normals => {
                 let cam = |n: &[f32; 3]| {
@@ -627,6 +696,21 @@ impl AssetWork<'_> {
     }
 }
 
+/// The object-id legend's file name, per asset.
+pub const LEGEND: &str = "objects.json";
+
+/// The object-id legend of a scene: `{"background": 0, "objects": [{"id":
+/// 1, "name": ...}, ...]}`, ids from 1 in the scene's order (what the
+/// `object_id.png` files hold).
+fn legend_json(objects: &crate::scene::Objects) -> String {
+    let list: Vec<serde_json::Value> = objects
+        .legend()
+        .map(|(id, name)| serde_json::json!({ "id": id, "name": name }))
+        .collect();
+    let doc = serde_json::json!({ "background": 0, "objects": list });
+    serde_json::to_string_pretty(&doc).expect("JSON") + "\n"
+}
+
 /// A view to render.
 struct View<'a> {
     index: u32,
@@ -634,6 +718,9 @@ struct View<'a> {
     n: &'a Normalisation,
     seed: u64,
     asset_hash: u128,
+    /// Whether the view's background is transparent (its environment is
+    /// not visible): the colour PNG is then straight, divided by the alpha.
+    transparent: bool,
 }
 
 /// The hex xxh3-128 hash of a file's bytes; `None` when it cannot be read.

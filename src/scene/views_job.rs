@@ -79,7 +79,8 @@ pub struct ViewsOutputs {
     pub png: bool,
     /// The colour as a linear float EXR.
     pub exr: bool,
-    /// The AOVs, each an EXR of its own.
+    /// The AOVs: each an EXR of its own, the object ids a 16-bit PNG,
+    /// the alpha a channel of the colour files.
     pub aovs: AovSet,
     /// Write the normals in the camera's frame (OpenCV axes) instead of
     /// the world's.
@@ -812,16 +813,6 @@ fn outputs(t: &Text, raw: Option<&OutputsFile>) -> Result<ViewsOutputs, SceneErr
     if let Some(a) = &o.aov {
         out.aovs = AovSet::from_names(a.get_ref().iter().map(String::as_str))
             .map_err(|e| t.err(a.span(), "outputs.aov", e))?;
-        if let Some(other) = unsupported_aov(out.aovs) {
-            return Err(t.err(
-                a.span(),
-                "outputs.aov",
-                format!(
-                    "views write albedo, normal and depth (not {} yet)",
-                    other.name()
-                ),
-            ));
-        }
     }
     if let Some(n) = &o.normals {
         out.camera_normals = match n.get_ref().as_str() {
@@ -837,14 +828,6 @@ fn outputs(t: &Text, raw: Option<&OutputsFile>) -> Result<ViewsOutputs, SceneErr
         };
     }
     Ok(out)
-}
-
-/// The first AOV of `aovs` that views do not write yet (views write
-/// albedo, normal and depth).
-pub fn unsupported_aov(aovs: AovSet) -> Option<super::Aov> {
-    use super::Aov;
-    aovs.iter()
-        .find(|a| !matches!(a, Aov::Albedo | Aov::Normal | Aov::Depth))
 }
 
 /// Read a JSON camera file: `frames`, each with a 4×4 camera-to-world
