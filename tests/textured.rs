@@ -999,6 +999,134 @@ fn a_normal_texture_bends_the_shading_normal_as_its_tangent_frame_says() {
 // ---------------------------------------------------------------------------
 // Both engines, and reproducibility
 
+/// `KHR_materials_transmission` on a checkered floor under a lamp: a
+/// rough solid cube (`KHR_materials_volume`), a rough thin-walled pane,
+/// a smooth thin pane of transmission 0.8, and a rough, partly metallic
+/// solid cube whose transmission texture stripes it.
+fn transmissive() -> Vec<u8> {
+    let mut g = Gltf::default();
+    let floor_tex = g.texture(8, 8, checker(8, 8, 8, [200; 4], [60, 60, 60, 255]), 9728);
+    let stripes: Vec<u8> = (0..8u32)
+        .flat_map(|j| (0..8u32).map(move |_| j))
+        .flat_map(|j| match j % 2 {
+            0 => [255, 0, 0, 255],
+            _ => [40, 0, 0, 255],
+        })
+        .collect();
+    let stripes = g.texture(8, 8, stripes, 9728);
+    let floor = g.material(Mat {
+        base_texture: Some((floor_tex, "")),
+        roughness: 0.8,
+        ..Mat::default()
+    });
+    let solid = g.material(Mat {
+        base: [0.9, 0.95, 1.0, 1.0],
+        roughness: 0.4,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_volume": {"thicknessFactor": 1.0}, "KHR_materials_ior": {"ior": 1.45}}"#,
+        ..Mat::default()
+    });
+    let thin = g.material(Mat {
+        base: [1.0, 0.9, 0.7, 1.0],
+        roughness: 0.3,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}"#,
+        ..Mat::default()
+    });
+    let smooth = g.material(Mat {
+        base: [0.8, 1.0, 0.8, 1.0],
+        roughness: 0.0,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}"#,
+        ..Mat::default()
+    });
+    let striped: &'static str = Box::leak(
+        format!(
+            r#", "extensions": {{"KHR_materials_transmission": {{"transmissionFactor": 0.9, "transmissionTexture": {{"index": {stripes}}}}}, "KHR_materials_volume": {{"thicknessFactor": 0.5}}}}"#
+        )
+        .into_boxed_str(),
+    );
+    let striped = g.material(Mat {
+        base: [1.0, 0.8, 0.8, 1.0],
+        metallic: 0.3,
+        roughness: 0.5,
+        extra: striped,
+        ..Mat::default()
+    });
+    let lamp = g.material(Mat {
+        base: [0.0, 0.0, 0.0, 1.0],
+        emissive: [1.0, 1.0, 1.0],
+        strength: 8.0,
+        ..Mat::default()
+    });
+    let s = 2.5;
+    let floor = g.quad(
+        [
+            Vec3::new(-s, 0.0, -s),
+            Vec3::new(-s, 0.0, s),
+            Vec3::new(s, 0.0, s),
+            Vec3::new(s, 0.0, -s),
+        ],
+        [[0.0, 0.0], [0.0, 2.0], [2.0, 2.0], [2.0, 0.0]],
+        floor,
+    );
+    g.node(floor, Vec3::ZERO, Quat::IDENTITY);
+    let cube = g.cube(1.0, solid);
+    g.node(cube, Vec3::new(-0.9, 0.5, 0.0), Quat::from_rotation_y(0.5));
+    let cube = g.cube(0.9, striped);
+    g.node(
+        cube,
+        Vec3::new(0.8, 0.45, -0.3),
+        Quat::from_rotation_y(-0.4),
+    );
+    let pane = |g: &mut Gltf, m| {
+        let h = 0.5;
+        g.quad(
+            [
+                Vec3::new(-h, 0.0, 0.0),
+                Vec3::new(h, 0.0, 0.0),
+                Vec3::new(h, 2.0 * h, 0.0),
+                Vec3::new(-h, 2.0 * h, 0.0),
+            ],
+            [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+            m,
+        )
+    };
+    let p = pane(&mut g, thin);
+    g.node(p, Vec3::new(-0.3, 0.0, 1.2), Quat::from_rotation_y(0.3));
+    let p = pane(&mut g, smooth);
+    g.node(p, Vec3::new(0.7, 0.0, 1.0), Quat::from_rotation_y(-0.3));
+    let l = 0.9;
+    let panel = g.quad(
+        [
+            Vec3::new(-l, 0.0, -l),
+            Vec3::new(l, 0.0, -l),
+            Vec3::new(l, 0.0, l),
+            Vec3::new(-l, 0.0, l),
+        ],
+        [[0.0; 2]; 4],
+        lamp,
+    );
+    g.node(panel, Vec3::new(0.0, 3.2, 0.3), Quat::IDENTITY);
+    let eye = Vec3::new(0.0, 1.7, 4.4);
+    let pitch = -((1.7f32 - 0.4) / 4.4).atan();
+    g.camera(eye, Quat::from_rotation_x(pitch), 0.75, 4.0 / 3.0);
+    g.glb()
+}
+
+/// The transmissive asset's materials are read as the extensions say:
+/// thin without `KHR_materials_volume`, solid with it, the transmission
+/// texture as a map.
+#[test]
+fn transmission_materials_are_thin_or_solid_as_the_volume_extension_says() {
+    use wavetrace::scene::Model;
+    let dir = TempDir::new("transmission");
+    let scene = scene_of(&dir, "transmission.glb", &transmissive());
+    let m = |k: usize| &scene.materials[k];
+    assert_eq!(m(1).model, Model::Transmission);
+    assert!(!m(1).thin && (m(1).ior, m(1).roughness, m(1).transmission) == (1.45, 0.4, 1.0));
+    assert!(m(2).thin && m(2).model == Model::Transmission);
+    assert!(m(3).thin && m(3).transmission == 0.8 && m(3).roughness == 0.0);
+    assert!(!m(4).thin && m(4).maps.transmission.is_some() && m(4).metallic == 0.3);
+}
+
 /// The two engines trace the same paths, and differ by the order of
 /// summation only (as tests/wavefront.rs holds them), for every
 /// integrator.
@@ -1012,6 +1140,7 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
         ("blend.glb", leaf(BLEND, 0.6)),
         ("wall.glb", emissive_wall()),
         ("tilt.glb", tilted_quad(None, 0.5)),
+        ("transmission.glb", transmissive()),
     ] {
         let scene = scene_of(&dir, name, &bytes);
         for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
@@ -1045,6 +1174,7 @@ fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
         ("blend.glb", leaf(BLEND, 0.6)),
         ("wall.glb", emissive_wall()),
         ("tilt.glb", tilted_quad(Some(-1.0), 0.8)),
+        ("transmission.glb", transmissive()),
     ] {
         same_whatever_threads_batches_and_lanes(&scene_of(&dir, name, &bytes), name);
     }

@@ -191,9 +191,10 @@ pub fn connect<R: Real>(
     light: &LightPoint<R>,
     err: R,
     (p, n, wo): (V3<R>, V3<R>, V3<R>),
+    front: R::Mask,
     surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
-    connect_shaded(light, err, (p, n, n, wo), surface)
+    connect_shaded(light, err, (p, n, n, wo), front, surface)
 }
 
 /// [`connect`] at a smooth surface: the BSDF is evaluated with the shading
@@ -206,6 +207,7 @@ pub fn connect_shaded<R: Real>(
     light: &LightPoint<R>,
     err: R,
     (p, ng, n, wo): (V3<R>, V3<R>, V3<R>, V3<R>),
+    front: R::Mask,
     surface: &Surface<R>,
 ) -> (R::Mask, ShadowRay<R>) {
     let zero = R::splat(0.0);
@@ -219,7 +221,7 @@ pub fn connect_shaded<R: Real>(
     let cos_light = -light.normal.dot(dir);
     // Short of the emitter by its point's error, across its surface.
     let t_max = dist - error_bound(origin, light.point, light.scale) / cos_light;
-    let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir);
+    let (fcos, cos, pdf_bsdf) = surface.eval(n, wo, dir, front);
     let valid = zero.lt(cos_light) & zero.lt(t_max) & zero.lt(cos) & zero.lt(ng.dot(dir));
     let pdf_light = R::select(
         R::splat(0.0).lt(light.pdf_solid_angle),

@@ -266,7 +266,7 @@ impl ReferenceTracer {
                     light.emission = V3::new(e[0], e[1], e[2]);
                 }
                 let vertex = (s.p, s.n, s.ns, V3::from(-d));
-                let (valid, shadow) = connect_shaded(&light, s.err, vertex, &surface);
+                let (valid, shadow) = connect_shaded(&light, s.err, vertex, s.front, &surface);
                 if valid {
                     counters.rays += 1;
                     counters.shadow_rays += 1;
@@ -284,7 +284,7 @@ impl ReferenceTracer {
         let s = surface.sample_shaded(hit, V3::from(d), u, report);
         // A delta direction has no density: light sampling could not have
         // found what it hits (MIS weight 1).
-        let pdf = if s.delta { 0.0 } else { s.pdf };
+        let pdf = surface.mis_pdf(&s, hit.1);
         let next_beta = Vec3::from(s.weigh(V3::from(beta)));
         let from = Vec3::from(spawn(leave.0, leave.1, s.wi, leave.2));
         let incoming = self.trace(

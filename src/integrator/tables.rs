@@ -73,8 +73,10 @@ pub struct Tables {
     /// per triangle (empty when the scene has none:
     /// [`Scene::texturing`]).
     pub uv: Vec<([glam::Vec3; 3], TriangleUv)>,
-    /// Each material's metalness (metallic-roughness).
+    /// Each material's metalness (metallic-roughness, transmission).
     pub metallic: Vec<f32>,
+    /// Each material's transmission factor and thin flag (transmission).
+    pub transmission: [Vec<f32>; 2],
     /// The materials, for the textured ones' lookups
     /// ([`Tables::scattering`]).
     materials: Vec<Material>,
@@ -171,6 +173,10 @@ impl Tables {
                 .map(|(t, uv)| (t.v, *uv))
                 .collect(),
             metallic: surfaces.iter().map(|s| s.metallic).collect(),
+            transmission: [
+                surfaces.iter().map(|s| s.transmission).collect(),
+                surfaces.iter().map(|s| s.thin).collect(),
+            ],
             materials: scene.materials.clone(),
             textured: Model::ALL.map(|model| {
                 (scene.materials.iter()).any(|m| {
@@ -473,7 +479,15 @@ impl Tables {
             alpha: of_mat(&self.alpha),
             ior: of_mat(&self.ior),
             metallic: match model {
-                Model::MetallicRoughness => of_mat(&self.metallic),
+                Model::MetallicRoughness | Model::Transmission => of_mat(&self.metallic),
+                _ => f32x8::ZERO,
+            },
+            transmission: match model {
+                Model::Transmission => of_mat(&self.transmission[0]),
+                _ => f32x8::ZERO,
+            },
+            thin: match model {
+                Model::Transmission => of_mat(&self.transmission[1]),
                 _ => f32x8::ZERO,
             },
         }
@@ -613,14 +627,15 @@ impl Tables {
             let at = |k: usize| c[0][k] * b[0] + c[1][k] * b[1] + c[2][k] * b[2];
             colour *= glam::Vec3::new(at(0), at(1), at(2));
         }
-        let mr = match &m.maps.metallic_roughness {
+        let (metal, rough) = match &m.maps.metallic_roughness {
             Some(t) => {
                 let c = lookup(t);
                 (c[2], c[1])
             }
             None => (1.0, 1.0),
         };
-        Surface::textured(m, colour, mr)
+        let transmission = m.maps.transmission.as_ref().map_or(1.0, |t| lookup(t)[0]);
+        Surface::textured(m, colour, (metal, rough, transmission))
     }
 
     /// [`surfaces`](Self::surfaces) of eight lanes at their hits `hit`:
@@ -649,6 +664,8 @@ impl Tables {
             alpha: col(|s| s.alpha),
             ior: col(|s| s.ior),
             metallic: col(|s| s.metallic),
+            transmission: col(|s| s.transmission),
+            thin: col(|s| s.thin),
         }
     }
 

@@ -135,6 +135,9 @@ pub struct PbrMaterial {
     pub specular_colour: [f32; 3],
     /// `KHR_materials_transmission`'s factor (0 without).
     pub transmission: f32,
+    /// `KHR_materials_transmission`'s texture (linear; R multiplies the
+    /// factor).
+    pub transmission_texture: Option<TextureRef>,
     /// `KHR_materials_volume`'s thickness factor (0: thin-walled).
     pub thickness: f32,
 }
@@ -157,6 +160,7 @@ impl PbrMaterial {
         specular: 1.0,
         specular_colour: [1.0; 3],
         transmission: 0.0,
+        transmission_texture: None,
         thickness: 0.0,
     };
 }

@@ -11,10 +11,15 @@
 //! the material's [`Coverage`] (cut-outs in both engines), and its
 //! emissive texture as [`Maps::emissive`] (emission looked up per hit and
 //! per light sample; the material's constant emission is the factor ×
-//! the texture's mean, what light sampling picks emitters by). Not yet
-//! evaluated per hit: `KHR_materials_transmission`, which, at
-//! `transmission ≥ ½`, renders as [`Model::Glass`] of the material's index
-//! (the base colour texture as its mean). Normal textures bend the
+//! the texture's mean, what light sampling picks emitters by).
+//! `KHR_materials_transmission` makes it a [`Model::Transmission`]
+//! material (the same, with a rough or smooth dielectric interface of the
+//! `KHR_materials_ior` index and the material's roughness in place of part
+//! of the diffuse lobe; the transmission texture's R looked up per hit),
+//! thin-walled without `KHR_materials_volume` or with a thickness of 0,
+//! the boundary of a solid otherwise; a smooth, fully transmitting,
+//! untextured solid is [`Model::Glass`], the same scattering as a delta
+//! model. Normal textures bend the
 //! shading normal ([`Maps::normal`]) where the mesh has tangents (the
 //! file's, or generated).
 //!
@@ -31,7 +36,7 @@
 use super::asset::{AlphaMode, Asset, AssetError, PbrMaterial};
 use super::builder::{Origin, SceneBuilder, View};
 use super::camera::Camera;
-use super::material::{Coverage, Maps};
+use super::material::{Coverage, IOR_RANGE, Maps, SMOOTH_ALPHA};
 use super::texture::TextureRef;
 use super::{Material, Model, RenderOptions, Scene, SceneError};
 use glam::{Mat4, Vec3};
@@ -118,30 +123,52 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
         out.maps.emissive_factor = Vec3::from(m.emissive).max(Vec3::ZERO);
     }
     out.maps.normal = m.normal_texture.map(scene_ref);
-    if m.transmission >= 0.5 && m.ior > 0.0 {
+    if is_plain_glass(m) {
         out.model = Model::Glass;
         out.ior = m.ior;
         out.transmittance = base;
-        if let Some(t) = m.base_colour_texture {
-            out.transmittance *= texture_mean(asset, t.texture);
-        }
-    } else {
-        out.model = Model::MetallicRoughness;
-        out.metallic = m.metallic.clamp(0.0, 1.0);
-        out.roughness = m.roughness.clamp(0.0, 1.0);
-        out.maps = Maps {
-            base_colour: m.base_colour_texture.map(scene_ref),
-            metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
-            ..out.maps
-        };
-        out.opacity = m.base_colour[3].clamp(0.0, 1.0);
-        out.coverage = match m.alpha_mode {
-            AlphaMode::Opaque => Coverage::Opaque,
-            AlphaMode::Mask(cutoff) => Coverage::Mask(cutoff),
-            AlphaMode::Blend => Coverage::Blend,
-        };
+        return out;
+    }
+    out.model = Model::MetallicRoughness;
+    out.metallic = m.metallic.clamp(0.0, 1.0);
+    out.roughness = m.roughness.clamp(0.0, 1.0);
+    out.maps = Maps {
+        base_colour: m.base_colour_texture.map(scene_ref),
+        metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
+        ..out.maps
+    };
+    out.opacity = m.base_colour[3].clamp(0.0, 1.0);
+    out.coverage = match m.alpha_mode {
+        AlphaMode::Opaque => Coverage::Opaque,
+        AlphaMode::Mask(cutoff) => Coverage::Mask(cutoff),
+        AlphaMode::Blend => Coverage::Blend,
+    };
+    if m.transmission > 0.0 && m.ior > 0.0 {
+        out.model = Model::Transmission;
+        out.transmission = m.transmission.clamp(0.0, 1.0);
+        out.ior = m.ior.clamp(*IOR_RANGE.start(), *IOR_RANGE.end());
+        out.thin = m.thickness <= 0.0; // (thickness is finite: the loader checks)
+        out.maps.transmission = m.transmission_texture.map(scene_ref);
     }
     out
+}
+
+/// Whether `m` is a smooth, fully transmitting dielectric solid without
+/// textures on its scattering (transmission 1, metalness 0, roughness² below
+/// [`SMOOTH_ALPHA`], a `KHR_materials_volume` thickness above 0, an index
+/// of refraction in [`IOR_RANGE`]): [`Model::Glass`] of its index and base
+/// colour, which is what [`Model::Transmission`] computes for it, as a
+/// delta model (no light sampling at its surface).
+fn is_plain_glass(m: &PbrMaterial) -> bool {
+    m.transmission >= 1.0
+        && m.metallic <= 0.0
+        && m.roughness * m.roughness < SMOOTH_ALPHA
+        && m.thickness > 0.0
+        && IOR_RANGE.contains(&m.ior)
+        && m.base_colour_texture.is_none()
+        && m.metallic_roughness_texture.is_none()
+        && m.transmission_texture.is_none()
+        && m.alpha_mode == AlphaMode::Opaque
 }
 
 /// Adds `asset` to the scene `b` builds: its textures, its materials

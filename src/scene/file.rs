@@ -216,6 +216,10 @@ struct MaterialFile {
     metallic: Option<Spanned<f32>>,
     #[serde(default)]
     roughness: Option<Spanned<f32>>,
+    #[serde(default)]
+    transmission: Option<Spanned<f32>>,
+    #[serde(default)]
+    thin: Option<Spanned<bool>>,
 }
 
 #[derive(Deserialize)]
@@ -526,6 +530,7 @@ fn material(t: &Toml, name: &str, m: &Spanned<MaterialFile>) -> Result<Material,
     fields.glass(f, &mut material)?;
     fields.metal(f, &mut material)?;
     fields.metallic_roughness(f, &mut material)?;
+    fields.transmission(f, &mut material)?;
     Ok(material)
 }
 
@@ -570,12 +575,16 @@ impl MaterialFields<'_> {
         Ok(c)
     }
 
-    /// Glass's `ior` and `transmittance` (refused on other models).
+    /// Glass's `ior` and `transmittance` (refused on other models; the
+    /// transmission model reads `ior`).
     fn glass(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
         if self.model != Model::Glass {
-            self.unused(f.ior.as_ref().map(|v| v.span()), "ior", "glass")?;
             let t = f.transmittance.as_ref().map(|v| v.span());
-            return self.unused(t, "transmittance", "glass");
+            self.unused(t, "transmittance", "glass")?;
+            if self.model != Model::Transmission {
+                let ior = f.ior.as_ref().map(|v| v.span());
+                return self.unused(ior, "ior", "glass and transmission");
+            }
         }
         if let Some(ior) = &f.ior {
             let v = *ior.get_ref();
@@ -630,8 +639,9 @@ impl MaterialFields<'_> {
             ("roughness", &f.roughness, &mut material.roughness),
         ] {
             let Some(value) = value else { continue };
-            if self.model != Model::MetallicRoughness {
-                self.unused(Some(value.span()), key, "metallic-roughness")?;
+            if !matches!(self.model, Model::MetallicRoughness | Model::Transmission) {
+                let models = "metallic-roughness and transmission";
+                self.unused(Some(value.span()), key, models)?;
             }
             let v = *value.get_ref();
             if !(0.0..=1.0).contains(&v) {
@@ -643,6 +653,33 @@ impl MaterialFields<'_> {
             }
             *slot = v;
         }
+        Ok(())
+    }
+}
+
+impl MaterialFields<'_> {
+    /// Transmission's `transmission` (in [0, 1], 1 by default) and `thin`
+    /// (false by default: the surface bounds a solid), refused on other
+    /// models.
+    fn transmission(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
+        if self.model != Model::Transmission {
+            let t = f.transmission.as_ref().map(|v| v.span());
+            self.unused(t, "transmission", "transmission")?;
+            return self.unused(f.thin.as_ref().map(|v| v.span()), "thin", "transmission");
+        }
+        material.transmission = 1.0;
+        if let Some(value) = &f.transmission {
+            let v = *value.get_ref();
+            if !(0.0..=1.0).contains(&v) {
+                return Err(self.t.err(
+                    value.span(),
+                    &format!("materials.{}.transmission", self.name),
+                    "must be in [0, 1]",
+                ));
+            }
+            material.transmission = v;
+        }
+        material.thin = f.thin.as_ref().is_some_and(|t| *t.get_ref());
         Ok(())
     }
 }

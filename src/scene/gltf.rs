@@ -518,6 +518,19 @@ impl Reader<'_> {
         }
     }
 
+    /// `KHR_materials_transmission`'s texture of material `m` (at `at`).
+    fn transmission_texture(
+        &mut self,
+        m: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<TextureRef>, AssetError> {
+        self.info(
+            m.transmission().and_then(|t| t.transmission_texture()),
+            ColourSpace::Linear,
+            &format!("{at}.extensions.KHR_materials_transmission.transmissionTexture"),
+        )
+    }
+
     fn read_materials(&mut self) -> Result<(), AssetError> {
         let finite = |x: f32| x.is_finite();
         for m in self.doc.materials() {
@@ -566,6 +579,7 @@ impl Reader<'_> {
                 }
                 None => None,
             };
+            let transmission_texture = self.transmission_texture(&m, &at)?;
             let strength = m.emissive_strength().unwrap_or(1.0);
             let e = m.emissive_factor();
             let alpha_mode = match m.alpha_mode() {
@@ -591,6 +605,7 @@ impl Reader<'_> {
                 specular: m.specular().map_or(1.0, |s| s.specular_factor()),
                 specular_colour: m.specular().map_or([1.0; 3], |s| s.specular_color_factor()),
                 transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+                transmission_texture,
                 thickness: m.volume().map_or(0.0, |v| v.thickness_factor()),
             };
             let scalars = [

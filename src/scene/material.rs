@@ -31,19 +31,37 @@ pub enum Model {
     /// [`Material::roughness`] (α = roughness²), each possibly textured
     /// ([`Maps`]). Both sides scatter.
     MetallicRoughness,
+    /// glTF 2.0's metallic-roughness material with
+    /// `KHR_materials_transmission`: [`Model::MetallicRoughness`] whose
+    /// diffuse base is partly ([`Material::transmission`]) replaced by a
+    /// rough (or smooth) dielectric interface of index [`Material::ior`]
+    /// and the same roughness, its transmission tinted by the base colour;
+    /// thin-walled ([`Material::thin`]: light leaves where it enters,
+    /// undeviated on average) or the boundary of a solid (refraction, as
+    /// [`Model::Glass`]). Not a delta model as a whole: its smooth
+    /// interface gives delta samples lane by lane.
+    Transmission,
 }
 
 impl Model {
     /// The names the scene format gives the models.
-    pub const NAMES: &[&str] = &["diffuse", "mirror", "glass", "metal", "metallic-roughness"];
+    pub const NAMES: &[&str] = &[
+        "diffuse",
+        "mirror",
+        "glass",
+        "metal",
+        "metallic-roughness",
+        "transmission",
+    ];
 
     /// Every model, in the order of [`Model::NAMES`].
-    pub const ALL: [Model; 5] = [
+    pub const ALL: [Model; 6] = [
         Model::Diffuse,
         Model::Mirror,
         Model::Glass,
         Model::Metal,
         Model::MetallicRoughness,
+        Model::Transmission,
     ];
 
     /// The model named `name` in scene files.
@@ -54,6 +72,7 @@ impl Model {
             "glass" => Some(Model::Glass),
             "metal" => Some(Model::Metal),
             "metallic-roughness" => Some(Model::MetallicRoughness),
+            "transmission" => Some(Model::Transmission),
             _ => None,
         }
     }
@@ -66,6 +85,7 @@ impl Model {
             Model::Glass => "glass",
             Model::Metal => "metal",
             Model::MetallicRoughness => "metallic-roughness",
+            Model::Transmission => "transmission",
         }
     }
 
@@ -89,6 +109,11 @@ pub const DEFAULT_IOR: f32 = 1.5;
 /// a NaN direction).
 pub const IOR_RANGE: std::ops::RangeInclusive<f32> = 0.1..=10.0;
 
+/// The GGX α below which a [`Model::Transmission`] interface is smooth
+/// (delta lobes): pbrt-v4's `EffectivelySmooth` threshold (a glTF
+/// roughness below about 0.032).
+pub const SMOOTH_ALPHA: f32 = 1e-3;
+
 /// The roughness of metal when the scene gives none.
 pub const DEFAULT_ALPHA: f32 = 0.1;
 
@@ -99,9 +124,12 @@ pub const DEFAULT_ALPHA: f32 = 0.1;
 pub struct Maps {
     /// Multiplies the reflectance (the base colour), RGB (sRGB-decoded).
     pub base_colour: Option<TextureRef>,
-    /// [`Model::MetallicRoughness`]: B multiplies
+    /// [`Model::MetallicRoughness`], [`Model::Transmission`]: B multiplies
     /// [`Material::metallic`], G [`Material::roughness`] (linear).
     pub metallic_roughness: Option<TextureRef>,
+    /// [`Model::Transmission`]: R multiplies [`Material::transmission`]
+    /// (linear; glTF's `transmissionTexture`).
+    pub transmission: Option<TextureRef>,
     /// Emitted radiance: [`emissive_factor`](Self::emissive_factor) ×
     /// this texture's RGB (sRGB-decoded) at the hit, towards the front
     /// side; [`Material::emission`] is then the factor × the texture's
@@ -120,7 +148,9 @@ impl Maps {
     /// Whether no scattering parameter is textured (base colour,
     /// metallic-roughness); emission is [`Maps::emissive`]'s business.
     pub fn is_empty(&self) -> bool {
-        self.base_colour.is_none() && self.metallic_roughness.is_none()
+        self.base_colour.is_none()
+            && self.metallic_roughness.is_none()
+            && self.transmission.is_none()
     }
 }
 
@@ -152,19 +182,29 @@ pub struct Material {
     pub reflectance: Vec3,
     /// Emitted radiance per RGB channel, towards the front side only.
     pub emission: Vec3,
-    /// Index of refraction of [`Model::Glass`] (the medium behind the
-    /// front side; the front is at index 1). Positive and finite.
+    /// Index of refraction of [`Model::Glass`] and [`Model::Transmission`]
+    /// (the medium behind the front side; the front is at index 1).
+    /// Positive and finite.
     pub ior: f32,
     /// Transmittance tint of [`Model::Glass`]'s refraction, in `[0, 1]`.
     pub transmittance: Vec3,
     /// GGX roughness α of [`Model::Metal`] (the α of the distribution
     /// itself), in `[0, 1]`.
     pub alpha: f32,
-    /// Metalness of [`Model::MetallicRoughness`], in `[0, 1]`.
+    /// Metalness of [`Model::MetallicRoughness`] and
+    /// [`Model::Transmission`], in `[0, 1]`.
     pub metallic: f32,
-    /// Roughness of [`Model::MetallicRoughness`] (its GGX α is the
-    /// square), in `[0, 1]`.
+    /// Roughness of [`Model::MetallicRoughness`] and
+    /// [`Model::Transmission`] (its GGX α is the square), in `[0, 1]`.
     pub roughness: f32,
+    /// The transmission factor of [`Model::Transmission`], in `[0, 1]`:
+    /// the share of the light that is not specularly reflected which the
+    /// dielectric part transmits rather than diffusely reflects.
+    pub transmission: f32,
+    /// Whether a [`Model::Transmission`] surface is thin-walled (glTF
+    /// without `KHR_materials_volume`, or a thickness of 0) rather than
+    /// the boundary of a solid.
+    pub thin: bool,
     /// Textured parameters (none by default).
     pub maps: Maps,
     /// Where the surface is there ([`Coverage::Opaque`] by default).
@@ -188,6 +228,8 @@ impl Material {
             alpha: DEFAULT_ALPHA,
             metallic: 0.0,
             roughness: 1.0,
+            transmission: 0.0,
+            thin: false,
             maps: Maps::default(),
             coverage: Coverage::Opaque,
             opacity: 1.0,
@@ -205,6 +247,10 @@ impl Material {
             Model::Glass => vec![Vec3::new(2.0, self.ior, 0.0), self.transmittance],
             Model::Metal => vec![Vec3::new(3.0, self.alpha, 0.0)],
             Model::MetallicRoughness => vec![Vec3::new(4.0, self.metallic, self.roughness)],
+            Model::Transmission => vec![
+                Vec3::new(8.0, self.metallic, self.roughness),
+                Vec3::new(self.ior, self.transmission, f32::from(u8::from(self.thin))),
+            ],
         };
         // (Opaque materials hash as before coverage existed.)
         match self.coverage {
@@ -218,6 +264,7 @@ impl Material {
             &self.maps.metallic_roughness,
             &self.maps.emissive,
             &self.maps.normal,
+            &self.maps.transmission,
         ]
         .into_iter()
         .enumerate()

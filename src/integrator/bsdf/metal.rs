@@ -138,7 +138,7 @@ pub fn pdf<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, alpha: R) -> R {
 /// un-normalised microfacet normal — exact for every α, without squaring
 /// α twice. `n2 = |m'|²` is returned too: zero means no normal.
 #[inline(always)]
-fn sample_visible_normal<R: Real>(wo_local: V3<R>, a: R, u: [R; 2]) -> (V3<R>, R, R) {
+pub fn sample_visible_normal<R: Real>(wo_local: V3<R>, a: R, u: [R; 2]) -> (V3<R>, R, R) {
     let one = R::splat(1.0);
     let zero = R::splat(0.0);
     // Stretched, normalised view direction.

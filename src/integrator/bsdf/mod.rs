@@ -8,7 +8,10 @@
 //! The models: [`diffuse`] (Lambertian, two-sided), [`mirror`] (perfect
 //! specular reflection), [`glass`] (smooth dielectric: Fresnel, Snell, total
 //! internal reflection) and [`metal`] (rough conductor: GGX with
-//! visible-normal sampling); [`surface`] dispatches on the model.
+//! visible-normal sampling), [`metallic_roughness`] (glTF's Appendix B)
+//! and [`transmission`] (glTF's `KHR_materials_transmission`: Appendix B
+//! mixed with the rough or smooth, thin or solid dielectric interface of
+//! [`dielectric`]); [`surface`] dispatches on the model.
 //!
 //! Conventions shared by every model:
 //!
@@ -22,12 +25,14 @@
 //! - A [`BsdfSample`] with `delta` set comes from a specular (Dirac) lobe;
 //!   see its documentation for how its factors are chosen.
 
+pub mod dielectric;
 pub mod diffuse;
 pub mod glass;
 pub mod metal;
 pub mod metallic_roughness;
 pub mod mirror;
 pub mod surface;
+pub mod transmission;
 
 pub use surface::Surface;
 

@@ -9,6 +9,7 @@
 //! (parameters, sampling, evaluation), and its fields in the scene format.
 
 use super::metallic_roughness::{self as mr, Params};
+use super::transmission as tr;
 use super::{BsdfSample, diffuse, facing, glass, leaks, metal, mirror};
 use crate::math::{Real, V3};
 use crate::scene::{Material, Model};
@@ -26,8 +27,13 @@ pub struct Surface<R: Real> {
     pub alpha: R,
     /// Index of refraction (glass).
     pub ior: R,
-    /// Metalness (metallic-roughness).
+    /// Metalness (metallic-roughness, transmission).
     pub metallic: R,
+    /// The transmission factor (transmission).
+    pub transmission: R,
+    /// 1 where the surface is thin-walled, 0 where it bounds a solid
+    /// (transmission).
+    pub thin: R,
 }
 
 impl Surface<f32> {
@@ -39,14 +45,20 @@ impl Surface<f32> {
     pub fn of(material: &Material) -> Self {
         let tint = match material.model {
             Model::Diffuse => material.reflectance / PI,
-            Model::Mirror | Model::Metal | Model::MetallicRoughness => material.reflectance,
+            Model::Mirror | Model::Metal | Model::MetallicRoughness | Model::Transmission => {
+                material.reflectance
+            }
             Model::Glass => material.transmittance,
         };
         let (alpha, metallic) = match material.model {
-            Model::MetallicRoughness => {
+            Model::MetallicRoughness | Model::Transmission => {
                 (material.roughness * material.roughness, material.metallic)
             }
             _ => (material.alpha, 0.0),
+        };
+        let (transmission, thin) = match material.model {
+            Model::Transmission => (material.transmission, f32::from(u8::from(material.thin))),
+            _ => (0.0, 0.0),
         };
         Surface {
             model: material.model,
@@ -54,6 +66,8 @@ impl Surface<f32> {
             alpha,
             ior: material.ior,
             metallic,
+            transmission,
+            thin,
         }
     }
 
@@ -61,24 +75,31 @@ impl Surface<f32> {
     /// `colour` (what multiplies its reflectance, or glass's
     /// transmittance: base colour texture × vertex colour) and `(m, r)`
     /// (what multiply a metallic-roughness material's metalness and
-    /// roughness). With white and ones it is [`Surface::of`]'s surface up
-    /// to rounding (not bit for bit: constant materials use
+    /// roughness) and `t` (what multiplies a transmission material's
+    /// transmission factor). With white and ones it is [`Surface::of`]'s
+    /// surface up to rounding (not bit for bit: constant materials use
     /// [`Surface::of`]).
     #[inline]
-    pub fn textured(material: &Material, colour: glam::Vec3, (m, r): (f32, f32)) -> Self {
+    pub fn textured(material: &Material, colour: glam::Vec3, (m, r, t): (f32, f32, f32)) -> Self {
         let mut s = Self::of(material);
         let tint = match material.model {
             Model::Diffuse => material.reflectance * colour / PI,
-            Model::Mirror | Model::Metal | Model::MetallicRoughness => {
+            Model::Mirror | Model::Metal | Model::MetallicRoughness | Model::Transmission => {
                 material.reflectance * colour
             }
             Model::Glass => material.transmittance * colour,
         };
         s.tint = V3::from(tint);
-        if material.model == Model::MetallicRoughness {
+        if matches!(
+            material.model,
+            Model::MetallicRoughness | Model::Transmission
+        ) {
             let roughness = material.roughness * r;
             s.alpha = roughness * roughness;
             s.metallic = material.metallic * m;
+        }
+        if material.model == Model::Transmission {
+            s.transmission = material.transmission * t;
         }
         s
     }
@@ -94,6 +115,8 @@ impl<R: Real> Surface<R> {
             alpha: R::splat(0.0),
             ior: R::splat(1.0),
             metallic: R::splat(0.0),
+            transmission: R::splat(0.0),
+            thin: R::splat(0.0),
         }
     }
 
@@ -107,6 +130,40 @@ impl<R: Real> Surface<R> {
         }
     }
 
+    /// The transmission parameters, `wo` on the geometric front where
+    /// `front`.
+    #[inline(always)]
+    fn transmission_params(&self, front: R::Mask) -> tr::Params<R> {
+        tr::Params {
+            base: self.tint,
+            metallic: self.metallic,
+            alpha: self.alpha,
+            ior: self.ior,
+            transmission: self.transmission,
+            thin: R::splat(0.5).lt(self.thin),
+            front,
+        }
+    }
+
+    /// The density to weigh, by multiple importance sampling, the emission
+    /// that the direction of sample `s` finds, at a surface of geometric
+    /// facing normal `ng` ([`facing`]): 0 where light sampling could not
+    /// have found it — after a delta sample (of a delta model, or a smooth
+    /// transmission lane), and after a transmission (light sampling
+    /// connects only on the side of `ng`) — else the sample's density.
+    #[inline(always)]
+    pub fn mis_pdf(&self, s: &BsdfSample<R>, ng: V3<R>) -> R {
+        let zero = R::splat(0.0);
+        match self.model {
+            Model::Transmission => {
+                let through = s.wi.dot(ng).le(zero);
+                R::select(s.delta | through, zero, s.pdf)
+            }
+            m if m.is_delta() => zero,
+            _ => s.pdf,
+        }
+    }
+
     /// The scattered direction of a ray of direction `d` that hit the
     /// surface of geometric (front) unit normal `normal`, from the vertex's
     /// two direction numbers `u`. Diffuse surfaces draw uniform hemisphere
@@ -114,7 +171,7 @@ impl<R: Real> Surface<R> {
     /// ones otherwise; glass chooses reflection or refraction with `u[0]`.
     #[inline(always)]
     pub fn sample(&self, normal: V3<R>, d: V3<R>, u: [R; 2], uniform: bool) -> BsdfSample<R> {
-        let (_, n) = facing(normal, d);
+        let (front, n) = facing(normal, d);
         let wo = -d;
         match self.model {
             Model::Diffuse if uniform => diffuse::sample_uniform(n, self.tint, u),
@@ -123,6 +180,7 @@ impl<R: Real> Surface<R> {
             Model::Glass => glass::sample(normal, wo, self.ior, self.tint, u[0]),
             Model::Metal => metal::sample(n, wo, self.alpha, self.tint, u),
             Model::MetallicRoughness => mr::sample(n, wo, &self.params(), u),
+            Model::Transmission => tr::sample(n, wo, &self.transmission_params(front), u),
         }
     }
 
@@ -153,6 +211,7 @@ impl<R: Real> Surface<R> {
             }
             Model::Metal => metal::sample(ns, wo, self.alpha, self.tint, u),
             Model::MetallicRoughness => mr::sample(ns, wo, &self.params(), u),
+            Model::Transmission => tr::sample(ns, wo, &self.transmission_params(front), u),
         };
         let (zero, one) = (R::splat(0.0), R::splat(1.0));
         let leak = leaks(ns, ng, s.wi);
@@ -166,12 +225,14 @@ impl<R: Real> Surface<R> {
     }
 
     /// For light sampling at a non-delta surface of facing unit normal `n`
-    /// (turned towards `wo`): `(f · cos θ, cos θ, pdf)` for the direction
-    /// `wi`, with `pdf` the density [`sample`](Self::sample) draws `wi`
+    /// (turned towards `wo`; `front`: `wo` is on the geometric front):
+    /// `(f · cos θ, cos θ, pdf)` for the direction `wi` on the side of
+    /// `wo`, with `pdf` the density [`sample`](Self::sample) draws `wi`
     /// with (cosine-weighted for diffuse). Zero where the surface does not
-    /// scatter `wo` into `wi`; delta models give zero everywhere.
+    /// scatter `wo` into `wi`, and for `wi` on the other side; delta models
+    /// give zero everywhere.
     #[inline(always)]
-    pub fn eval(&self, n: V3<R>, wo: V3<R>, wi: V3<R>) -> (V3<R>, R, R) {
+    pub fn eval(&self, n: V3<R>, wo: V3<R>, wi: V3<R>, front: R::Mask) -> (V3<R>, R, R) {
         let zero = R::splat(0.0);
         match self.model {
             Model::Diffuse => {
@@ -188,6 +249,13 @@ impl<R: Real> Surface<R> {
                 let f = mr::eval(n, wo, wi, &p);
                 let cos = n.dot(wi).max(zero);
                 (f.scale(cos), cos, mr::pdf(n, wo, wi, &p))
+            }
+            Model::Transmission => {
+                // Light sampling reaches the side of `wo` only.
+                let p = self.transmission_params(front);
+                let f = tr::eval(n, wo, wi, &p);
+                let cos = n.dot(wi).max(zero);
+                (f.scale(cos), cos, tr::pdf(n, wo, wi, &p))
             }
             Model::Mirror | Model::Glass => (V3::new(zero, zero, zero), zero, zero),
         }

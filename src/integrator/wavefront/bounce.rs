@@ -9,7 +9,6 @@ use crate::integrator::sampler::Sampler;
 use crate::math::V3;
 use crate::scene::{Integrator, Model};
 use std::ops::Range;
-use wide::f32x8;
 
 /// Bounce every path in the queue (all live: retired rows are gone) off
 /// the surface it hit, each model's rows (`bins`, from the *sort* stage)
@@ -66,7 +65,7 @@ pub fn scatter<S: Sampler>(
             surface.sample(hit.ng, d, u, report)
         };
         let beta = s.weigh(beta);
-        let pdf = if model.is_delta() { f32x8::ZERO } else { s.pdf };
+        let pdf = surface.mis_pdf(&s, hit.n);
         let origin = spawn(hit.p, hit.ng, s.wi, hit.err);
 
         store3(&mut queue.o, i, origin, lanes);

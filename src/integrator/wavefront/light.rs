@@ -71,9 +71,9 @@ fn sample_lights_8<S: Sampler>(
     }
     let surface = tables.surfaces_at(model, &tris, &s);
     let (valid, ray) = if tables.has_smooth() {
-        connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), &surface)
+        connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), s.front, &surface)
     } else {
-        connect(&light, s.err, (s.p, s.n, -d), &surface)
+        connect(&light, s.err, (s.p, s.n, -d), s.front, &surface)
     };
     // The live lanes that may carry light.
     let valid = valid.to_bitmask() as u8 & (u8::MAX >> (8 - lanes));
