@@ -59,8 +59,23 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 ];
 
 /// The most elements an accessor without a buffer view (all zeros, then
-/// sparse values) may declare.
+/// sparse values) may declare; it may declare no more than the file's
+/// buffers have bytes either (but always [`MIN_ZERO_ELEMENTS`]).
 pub const MAX_ZERO_ELEMENTS: usize = 1 << 26;
+
+/// The elements an accessor without a buffer view may always declare,
+/// however small the file's buffers.
+pub const MIN_ZERO_ELEMENTS: usize = 1 << 16;
+
+/// What the decoded accessors of one file may take, at most, in all: this
+/// many times its buffers' bytes, plus [`DECODE_ALLOWANCE`]. Several
+/// primitives may read one accessor (each decodes it again), so without a
+/// bound a small file of many primitives sharing one large accessor could
+/// ask for any amount of memory.
+pub const DECODE_RATIO: u64 = 64;
+
+/// The decoded bytes any file may take, whatever its size (64 MiB).
+pub const DECODE_ALLOWANCE: u64 = 1 << 26;
 
 /// The most triangles one asset may have.
 pub const MAX_TRIANGLES: usize = 1 << 28;
@@ -112,6 +127,7 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
         asset: Asset::default(),
         textures: HashMap::new(),
         files: Default::default(),
+        decoded: Default::default(),
     };
     r.warn_unread_extensions();
     r.buffers = r.load_buffers(gltf.blob.as_deref())?;
@@ -162,6 +178,8 @@ struct Reader<'a> {
     textures: HashMap<(usize, bool), u32>,
     /// The external files read (buffers, images).
     files: std::cell::RefCell<Vec<std::path::PathBuf>>,
+    /// The bytes of the accessors decoded so far.
+    decoded: std::cell::Cell<u64>,
 }
 
 impl Reader<'_> {
@@ -351,18 +369,45 @@ impl Reader<'_> {
         one: impl Fn(&[u8]) -> T,
     ) -> Result<Vec<T>, AssetError> {
         let count = acc.count();
-        let mut out = match acc.view() {
-            Some(view) => self
-                .elements(&view, acc.offset(), count, size, at)?
-                .iter()
-                .map(&one)
-                .collect(),
+        let buffer_bytes: u64 = self.buffers.iter().map(|b| b.len() as u64).sum();
+        // The data checked first (it must fit its view, or, without one,
+        // be no more than the buffers' bytes), then the decoding budget.
+        let data = match acc.view() {
+            Some(view) => Some(self.elements(&view, acc.offset(), count, size, at)?),
             None => {
-                if count > MAX_ZERO_ELEMENTS {
-                    return Err(self.err(at, format!("{count} elements declared without data")));
+                let most = MAX_ZERO_ELEMENTS.min(MIN_ZERO_ELEMENTS.max(buffer_bytes as usize));
+                if count > most {
+                    return Err(self.err(
+                        at,
+                        format!(
+                            "{count} elements declared without data (at most {most}: the \
+                             file's buffers have {buffer_bytes} bytes)"
+                        ),
+                    ));
                 }
-                vec![zero; count]
+                None
             }
+        };
+        let decoded = (count as u64)
+            .saturating_mul(std::mem::size_of::<T>() as u64)
+            .saturating_add(self.decoded.get());
+        let budget = buffer_bytes
+            .saturating_mul(DECODE_RATIO)
+            .saturating_add(DECODE_ALLOWANCE);
+        if decoded > budget {
+            return Err(self.err(
+                at,
+                format!(
+                    "{count} elements would bring the decoded data to {decoded} bytes, more \
+                     than {DECODE_RATIO} times the file's {buffer_bytes} bytes of buffers \
+                     (plus {DECODE_ALLOWANCE})"
+                ),
+            ));
+        }
+        self.decoded.set(decoded);
+        let mut out = match data {
+            Some(elements) => elements.iter().map(&one).collect(),
+            None => vec![zero; count],
         };
         if let Some(sparse) = acc.sparse() {
             let n = sparse.count();

@@ -10,11 +10,22 @@
 //! element's `vertex_indices` (or `vertex_index`), polygons of any number
 //! of sides triangulated as fans. Other elements and properties are read
 //! past and ignored.
+//!
+//! **Declared counts are checked before anything is read.** Every
+//! element's count times its smallest record (binary: the sizes of its
+//! scalars plus its lists' length fields, at least one byte; ASCII: two
+//! bytes a value, a digit and a separator, at least one byte a line) must
+//! fit in the bytes after the header ([`check_counts`]): a 200-byte file
+//! declaring 10⁹ vertices is refused at once, where it had made the
+//! reader fill 24 GB with empty records.
 
 use super::asset::{Asset, AssetError, AssetMesh, Instance, PbrMaterial};
 use glam::{Mat4, Vec3};
 use ply_rs_bw::parser::{Parser, Reader};
-use ply_rs_bw::ply::{DefaultElement, Property, PropertyAccess, PropertyAccessResult};
+use ply_rs_bw::ply::{
+    DefaultElement, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
+    ScalarType,
+};
 use std::io::BufRead;
 use std::path::Path;
 
@@ -127,9 +138,57 @@ impl PropertyAccess for Face {
 /// Reads the PLY file at `path`.
 pub fn load(path: &Path) -> Result<Asset, AssetError> {
     let file = path.display().to_string();
-    let f = std::fs::File::open(path)
+    let bytes = std::fs::read(path)
         .map_err(|e| AssetError::new(&file, "", format!("cannot read the file: {e}")))?;
-    read(std::io::BufReader::new(f), &file)
+    read_bytes(&bytes, &file)
+}
+
+/// The bytes of a scalar in a binary file.
+fn scalar_size(t: &ScalarType) -> u128 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// Refuses a header whose elements cannot fit in the `left` bytes that
+/// follow it: each element's count times its smallest record (binary: its
+/// scalars' sizes plus its lists' length fields, lists being empty, and
+/// at least one byte; ASCII: two bytes a value, one a line), summed in
+/// order, in 128-bit arithmetic. Checked before any record is read, so
+/// that a forged count costs nothing.
+pub fn check_counts(header: &Header, left: usize, file: &str) -> Result<(), AssetError> {
+    let mut need: u128 = 0;
+    for element in header.elements.values() {
+        let record: u128 = match header.encoding {
+            Encoding::Ascii => (2 * element.properties.len() as u128).max(1),
+            Encoding::BinaryBigEndian | Encoding::BinaryLittleEndian => element
+                .properties
+                .values()
+                .map(|p| match &p.data_type {
+                    PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+                })
+                .sum::<u128>()
+                .max(1),
+        };
+        need += element.count as u128 * record;
+        // An ASCII file's last line may end without a line break.
+        let slack = u128::from(header.encoding == Encoding::Ascii);
+        if need > left as u128 + slack {
+            return Err(AssetError::new(
+                file,
+                format!("element {}", element.name),
+                format!(
+                    "{} {} elements declared, but the {left} bytes after the header \
+                     cannot hold them (each takes at least {record} bytes)",
+                    element.count, element.name
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The mesh of `vertices` (no triangles yet): positions (finite), and
@@ -182,18 +241,30 @@ fn vertex_attributes(vertices: &[Vertex], file: &str) -> Result<AssetMesh, Asset
     Ok(mesh)
 }
 
-/// Reads a PLY file from `source`; `file` names it in errors.
-pub fn read(source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
+/// Reads a PLY file from `source` (read whole first); `file` names it in
+/// errors.
+pub fn read(mut source: impl BufRead, file: &str) -> Result<Asset, AssetError> {
+    let mut bytes = Vec::new();
+    source
+        .read_to_end(&mut bytes)
+        .map_err(|e| AssetError::new(file, "", format!("cannot read the file: {e}")))?;
+    read_bytes(&bytes, file)
+}
+
+/// Reads a PLY file's bytes; `file` names it in errors.
+pub fn read_bytes(bytes: &[u8], file: &str) -> Result<Asset, AssetError> {
     let err = |at: String, m: String| AssetError::new(file, at, m);
     let ply_err = |e: ply_rs_bw::parser::ParseError| {
         let at = e.line().map_or_else(String::new, |l| format!("line {l}"));
         AssetError::new(file, at, format!("not a readable PLY file: {e}"))
     };
-    let mut reader = Reader::new(source);
+    let mut reader = Reader::new(std::io::Cursor::new(bytes));
     let vertex_parser = Parser::<Vertex>::new();
     let face_parser = Parser::<Face>::new();
     let other_parser = Parser::<DefaultElement>::new();
     let header = vertex_parser.read_header(&mut reader).map_err(ply_err)?;
+    let at = reader.get_ref().position() as usize;
+    check_counts(&header, bytes.len().saturating_sub(at), file)?;
     let (mut vertices, mut faces) = (Vec::new(), Vec::new());
     for element in header.elements.values() {
         match element.name.as_str() {

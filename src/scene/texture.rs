@@ -50,6 +50,13 @@ pub const MAX_SIDE: u32 = 16_384;
 /// The most memory the decoding of one image may allocate, in bytes.
 pub const MAX_DECODE_BYTES: u64 = 1 << 30;
 
+/// The most texels an image file may hold per byte of it: deflate (PNG)
+/// expands at most 1032 times, and a PNG of one bit a texel holds 8 a
+/// byte (8256); JPEG needs at least two bits per 8 × 8 block (256 a byte).
+/// A header declaring more is refused before decoding: a 100-byte PNG
+/// declaring 16384 × 16384 texels had the decoder allocate 1 GiB.
+pub const MAX_TEXELS_PER_BYTE: u64 = 8256;
+
 /// How texel values are decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ColourSpace {
@@ -284,6 +291,22 @@ impl Texture {
                     "the data is not a PNG or JPEG image".to_string(),
                 ));
             }
+        }
+        // The size its header declares, checked against what its bytes
+        // can hold before any texel is allocated.
+        let (w, h) = ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .and_then(|r| r.into_dimensions().map_err(std::io::Error::other))
+            .map_err(|e| TextureError(format!("cannot read the image: {e}")))?;
+        let most = (bytes.len() as u64)
+            .saturating_mul(MAX_TEXELS_PER_BYTE)
+            .saturating_add(1 << 16);
+        if u64::from(w) * u64::from(h) > most {
+            return Err(TextureError(format!(
+                "an image of {w} × {h} texels in {} bytes: more than such a file can hold \
+                 ({MAX_TEXELS_PER_BYTE} texels a byte)",
+                bytes.len()
+            )));
         }
         let mut limits = Limits::default();
         limits.max_image_width = Some(MAX_SIDE);
