@@ -49,6 +49,8 @@ fn options(out: &Path, shard: Option<(u32, u32)>, threads: usize) -> ViewsOption
         threads,
         engine: Engine::Wavefront,
         batch_size: None,
+        checkpoint_every: wavetrace::run::views::DEFAULT_CHECKPOINT_EVERY,
+        pass_samples: None,
     }
 }
 
@@ -700,4 +702,68 @@ fn object_ids_alpha_and_depths_of_a_views_job_are_exact() {
             "0.zdepth.exr"
         ]
     );
+}
+
+/// The view checkpoints (`.wtacc`) under `out`.
+fn checkpoints(out: &Path) -> Vec<PathBuf> {
+    let Ok(assets) = std::fs::read_dir(out) else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    for a in assets {
+        let Ok(files) = std::fs::read_dir(a.unwrap().path().join("manifest")) else {
+            continue;
+        };
+        for f in files {
+            let p = f.unwrap().path();
+            if p.extension().is_some_and(|e| e == "wtacc") {
+                found.push(p);
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn a_view_stopped_inside_goes_on_from_its_checkpoint() {
+    let dir = TempDir::new("checkpoint");
+    let job = two_asset_job(&dir);
+    let one = run_job(&job, &options(&dir.join("one"), None, 2));
+    assert_eq!(one.rendered, 10);
+    // Passes of one sample, a checkpoint after each; stopped as soon as the
+    // first view in progress has one (the deterministic hook: `stop` looks
+    // for it), so inside that view, after its first pass.
+    let out = dir.join("cut");
+    let mut o = options(&out, None, 1);
+    o.checkpoint_every = std::time::Duration::ZERO;
+    o.pass_samples = Some(1);
+    let stop = || !checkpoints(&out).is_empty();
+    let r = wavetrace::run::views::run(&job, &o, &stop, &mut |_| {}).unwrap();
+    assert!(r.stopped && r.rendered == 0, "{r:?}");
+    let saved = checkpoints(&out);
+    assert_eq!(saved.len(), 1, "{saved:?}");
+    let (film, _) = wavetrace::film::Film::load(&saved[0], None).unwrap();
+    let checkpoint = std::fs::read(&saved[0]).unwrap();
+    assert_eq!(
+        film.samples_per_pixel(),
+        1,
+        "one pass of the 4 samples saved"
+    );
+    // Run again: that view goes on from its checkpoint (3 more samples), the
+    // rest from scratch; the files are the bytes of the uninterrupted run,
+    // and no checkpoint is left.
+    let again = run_job(&job, &options(&out, None, 2));
+    let resumed: u32 = again.assets.iter().map(|a| a.views_resumed).sum();
+    assert_eq!((again.rendered, resumed), (10, 1));
+    assert!(checkpoints(&out).is_empty());
+    same_trees(&dir.join("one"), &out, "resumed from a checkpoint");
+    // A checkpoint of another view (or job) is not taken: a damaged or
+    // foreign one is ignored, the view rendered from scratch.
+    let record = out.join("spheres/manifest/2.json");
+    std::fs::remove_file(&record).unwrap();
+    std::fs::write(record.with_extension("wtacc"), &checkpoint).unwrap();
+    let foreign = run_job(&job, &options(&out, None, 2));
+    let resumed: u32 = foreign.assets.iter().map(|a| a.views_resumed).sum();
+    assert_eq!((foreign.rendered, resumed), (1, 0));
+    same_trees(&dir.join("one"), &out, "a foreign checkpoint ignored");
 }

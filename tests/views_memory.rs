@@ -66,6 +66,8 @@ fn memory_stays_flat_over_hundreds_of_assets() {
             threads: 2,
             engine: Engine::Wavefront,
             batch_size: None,
+            checkpoint_every: wavetrace::run::views::DEFAULT_CHECKPOINT_EVERY,
+            pass_samples: None,
         },
         &|| false,
         &mut |e| {

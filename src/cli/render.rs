@@ -171,7 +171,7 @@ fn parse_simd(text: &str) -> std::result::Result<SimdWidth, String> {
 }
 
 /// A positive, finite number of seconds, e.g. `30` or `0.5`.
-fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
+pub(crate) fn parse_seconds(text: &str) -> std::result::Result<Duration, String> {
     let seconds: f64 = text
         .trim()
         .parse()

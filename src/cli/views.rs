@@ -4,7 +4,7 @@ use crate::error::{Error, Result};
 use crate::render::Engine;
 use crate::run::session::Interrupt;
 use crate::run::shard::ShardSpec;
-use crate::run::views::{ViewsEvent, ViewsOptions, ViewsReport};
+use crate::run::views::{DEFAULT_CHECKPOINT_EVERY, ViewsEvent, ViewsOptions, ViewsReport};
 use crate::scene::environment::{EnvSource, Environment};
 use crate::scene::views_job::{
     CameraSet, DEFAULT_SIZE, DEFAULT_SPP, DEFAULT_VFOV_DEG, ViewsJob, ViewsOutputs, ViewsRender,
@@ -111,6 +111,9 @@ pub struct ViewsArgs {
     /// Path tracer: wavefront (fast) or reference (the scalar oracle).
     #[arg(long, value_parser = super::render::named(Engine::NAMES, |n| Engine::from_name(n).ok()), help_heading = "Tuning")]
     pub engine: Option<Engine>,
+    /// Save the view in progress this often, in seconds (and when stopped), so a killed run goes on from there [default: 60].
+    #[arg(long, value_name = "SECONDS", value_parser = super::render::parse_seconds, help_heading = "Tuning")]
+    pub checkpoint_every: Option<Duration>,
     /// Paths per wavefront batch; never changes the images.
     #[arg(long, value_name = "PATHS", help_heading = "Tuning")]
     pub batch_size: Option<usize>,
@@ -289,6 +292,8 @@ pub fn run(args: ViewsArgs) -> Result<ExitCode> {
         threads,
         engine: args.engine.unwrap_or(Engine::Wavefront),
         batch_size: args.batch_size,
+        checkpoint_every: args.checkpoint_every.unwrap_or(DEFAULT_CHECKPOINT_EVERY),
+        pass_samples: None,
     };
     let quiet = args.quiet || !std::io::stderr().is_terminal();
     let interrupt = Interrupt::install()?;

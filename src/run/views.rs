@@ -25,6 +25,7 @@ use super::views_cameras::{
 };
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
+use crate::film::AccMeta;
 use crate::fs::write_atomic;
 use crate::output::ExrLayer;
 use crate::output::view::ViewTransform;
@@ -34,7 +35,7 @@ use crate::scene::{Aov, AovSet, Scene};
 use glam::Vec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// How to run a job: where, which part, and the tuning that never
 /// changes a bit of the output.
@@ -50,7 +51,20 @@ pub struct ViewsOptions {
     pub engine: Engine,
     /// Paths per wavefront batch (`None`: the default).
     pub batch_size: Option<usize>,
+    /// Save the view in progress to its checkpoint this often (and when
+    /// stopped), so that a killed run goes on from there
+    /// ([`DEFAULT_CHECKPOINT_EVERY`]).
+    pub checkpoint_every: Duration,
+    /// Samples per pixel per pass (`None`: passes of about half a second).
+    pub pass_samples: Option<u32>,
 }
+
+/// How often a view in progress is saved by default.
+pub const DEFAULT_CHECKPOINT_EVERY: Duration = Duration::from_secs(60);
+
+/// How long a pass of a view's samples should take (between passes, its
+/// checkpoint may be saved).
+const PASS_SECONDS: f64 = 0.5;
 
 /// What happened, as it happens (the command draws its progress from these).
 #[derive(Debug)]
@@ -95,6 +109,9 @@ pub struct AssetReport {
     pub views_rendered: u32,
     /// Views skipped, finished earlier.
     pub views_skipped: u32,
+    /// Views of those rendered that went on from a checkpoint (a run
+    /// stopped inside them).
+    pub views_resumed: u32,
     /// Seconds tracing paths, all its views.
     pub render_seconds: f64,
     /// Seconds on the rest of its views (AOVs, denoise, writing, hashing).
@@ -468,12 +485,13 @@ impl AssetWork<'_> {
                 asset_hash: hash,
                 transparent: scene.has_transparent_background(),
             };
-            let Some((render_seconds, write_seconds)) =
+            let Some((render_seconds, write_seconds, resumed)) =
                 self.view(&mut renderer, &view, denoiser, stop)?
             else {
                 return Ok(false);
             };
             report.views_rendered += 1;
+            report.views_resumed += u32::from(resumed > 0);
             report.render_seconds += render_seconds;
             report.write_seconds += write_seconds;
             observe(ViewsEvent::View {
@@ -546,17 +564,13 @@ impl AssetWork<'_> {
         view: &View,
         denoiser: &mut Option<Denoiser>,
         stop: &(dyn Fn() -> bool + Sync),
-    ) -> Result<Option<(f64, f64)>> {
+    ) -> Result<Option<(f64, f64, u64)>> {
         let (w, h) = (self.job.render.width, self.job.render.height);
         renderer.set_view(&view.n.camera(view.pose), view.seed);
         let t = Instant::now();
-        let mut film = renderer.new_film();
-        if renderer
-            .render_samples_or_stop(0..self.job.render.spp, &mut film, stop)
-            .is_none()
-        {
+        let Some((film, resumed)) = self.render(renderer, view, stop)? else {
             return Ok(None);
-        }
+        };
         let render_seconds = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let aovs = film.aov_images();
@@ -614,7 +628,84 @@ impl AssetWork<'_> {
             }
         }
         self.write_record(view, &files)?;
-        Ok(Some((render_seconds, t.elapsed().as_secs_f64())))
+        // The view is finished: its checkpoint is of no more use.
+        let _ = std::fs::remove_file(self.checkpoint_path(view.index));
+        Ok(Some((render_seconds, t.elapsed().as_secs_f64(), resumed)))
+    }
+
+    /// View `i`'s checkpoint: its film so far, `manifest/NNNN.wtacc`.
+    fn checkpoint_path(&self, i: u32) -> PathBuf {
+        self.record_path(i)
+            .with_extension(crate::output::PARTIAL_EXTENSION)
+    }
+
+    /// Trace a view's samples, in passes, from its checkpoint when there
+    /// is one of this very view (same job, asset, view and seed, size and
+    /// AOVs); the checkpoint is saved every
+    /// [`checkpoint_every`](ViewsOptions::checkpoint_every) and when
+    /// `stop` ends the view (`None`). Returns the film and the samples per
+    /// pixel it resumed with.
+    fn render(
+        &self,
+        renderer: &Renderer,
+        view: &View,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<(crate::film::Film, u64)>> {
+        let spp = self.job.render.spp;
+        let path = self.checkpoint_path(view.index);
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        for part in [self.job_hash, view.asset_hash, u128::from(view.index)] {
+            h.update(&part.to_le_bytes());
+        }
+        h.update(&view.seed.to_le_bytes());
+        let meta = AccMeta {
+            settings_hash: h.digest128(),
+            spp: Some(spp),
+            shard: None,
+        };
+        let target = 0..spp;
+        let mut film = crate::film::Film::load_with_meta(&path, Some(meta.settings_hash))
+            .ok()
+            .filter(|(f, m)| {
+                m.spp == Some(spp)
+                    && crate::run::session::check_resumable(f, renderer.settings(), &target).is_ok()
+            })
+            .map_or_else(|| renderer.new_film(), |(f, _)| f);
+        let resumed = film.samples_per_pixel();
+        let (mut saved, mut since) = (resumed, Instant::now());
+        let save = |film: &crate::film::Film, saved: &mut u64| -> Result<()> {
+            if film.samples_per_pixel() > *saved {
+                film.save_with_meta(&path, &meta)?;
+                *saved = film.samples_per_pixel();
+            }
+            Ok(())
+        };
+        let mut per_sample: Option<f64> = None;
+        while let Some(gap) = crate::run::session::first_gap(&film.ranges, &target) {
+            // Passes of about PASS_SECONDS (one sample first, to measure).
+            let n = match (self.options.pass_samples, per_sample) {
+                (Some(n), _) => n.max(1),
+                (None, None) => 1,
+                (None, Some(p)) => (PASS_SECONDS / p).clamp(1.0, f64::from(spp)) as u32,
+            };
+            let n = n.min(gap.end - gap.start);
+            let t = Instant::now();
+            if stop()
+                || renderer
+                    .render_samples_or_stop(gap.start..gap.start + n, &mut film, stop)
+                    .is_none()
+            {
+                save(&film, &mut saved)?;
+                return Ok(None);
+            }
+            per_sample = Some(t.elapsed().as_secs_f64() / f64::from(n));
+            let more = crate::run::session::first_gap(&film.ranges, &target).is_some();
+            if more && since.elapsed() >= self.options.checkpoint_every {
+                save(&film, &mut saved)?;
+                since = Instant::now();
+            }
+        }
+        Ok(Some((film, resumed)))
     }
 
     /// Write AOV `aov` of a view as an EXR: depth (`Z`, in the job's world
