@@ -104,18 +104,19 @@ def wavetrace(a, asset, spp, seed, out):
     )
     seconds = time.perf_counter() - t
     folder = next(p for p in out.iterdir() if p.is_dir())
-    images = [load_exr(folder / f"{i}.exr") if (folder / f"{i}.exr").exists() else load_exr(folder / f"{i:0{len(str(a.views - 1))}d}.exr") for i in range(a.views)]
+    digits = len(str(a.views - 1))  # views' names are padded to the view count's digits
+    images = [load_exr(folder / f"{i:0{digits}d}.exr") for i in range(a.views)]
     return images, seconds, folder / "transforms.json"
 
 
-def cycles(a, asset, transforms, spp, seed, out):
+def cycles(a, asset, transforms, spp, seed, out, adaptive=False):
     out.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
     r = subprocess.run(
         [sys.executable, str(HERE / "cycles_views.py"), "--glb", str(asset), "--env", str(ENV),
          "--rotation", str(ROTATION), "--transforms", str(transforms), "--out", str(out),
          "--spp", str(spp), "--bounces", str(MAX_DEPTH - 2), "--threads", str(a.threads),
-         "--seed", str(seed)] + (["--adaptive"] if a.adaptive else []),
+         "--seed", str(seed)] + (["--adaptive"] if adaptive else []),
         check=True, capture_output=True, text=True,
     )
     seconds = time.perf_counter() - t
@@ -147,7 +148,8 @@ def main():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--ref-spp", type=int, default=1024)
     p.add_argument("--spp", default="4,16,64")
-    p.add_argument("--adaptive", action="store_true", help="Cycles' adaptive sampling on")
+    p.add_argument("--adaptive", action="store_true",
+                   help="Cycles' adaptive sampling on (not for the references)")
     a = p.parse_args()
     out = Path(a.out)
     counts = [int(s) for s in a.spp.split(",")]
@@ -157,7 +159,6 @@ def main():
         print(f"{name}: references at {a.ref_spp} spp", file=sys.stderr)
         wt_ref, _, transforms = wavetrace(a, asset, a.ref_spp, 7, out / name / "wt-ref")
         cy_ref, _, _ = cycles(a, asset, transforms, a.ref_spp, 7, out / name / "cy-ref")
-        sky = [np.all(r > 0, axis=-1) for r in wt_ref]  # background rows differ only by noise
         agree = []
         for v in range(a.views):
             w, c = wt_ref[v], cy_ref[v]
@@ -168,14 +169,13 @@ def main():
                 "sky_ratio": float(c[rows].mean() / w[rows].mean()),
                 "ratio": float(c.mean() / w.mean()),
             })
-        del sky
         runs = {"wavetrace": [], "cycles": []}
         for spp in counts:
             print(f"{name}: {spp} spp", file=sys.stderr)
             imgs, secs, _ = wavetrace(a, asset, spp, 1, out / name / f"wt-{spp}")
             e = float(np.mean([relmse(x, r) for x, r in zip(imgs, wt_ref)]))
             runs["wavetrace"].append({"spp": spp, "relmse": e, "seconds_per_image": secs / a.views})
-            imgs, secs, wall = cycles(a, asset, transforms, spp, 1, out / name / f"cy-{spp}")
+            imgs, secs, wall = cycles(a, asset, transforms, spp, 1, out / name / f"cy-{spp}", a.adaptive)
             e = float(np.mean([relmse(x, r) for x, r in zip(imgs, cy_ref)]))
             runs["cycles"].append({"spp": spp, "relmse": e, "seconds_per_image": secs / a.views,
                                    "wall_seconds_per_image": wall / a.views})

@@ -15,8 +15,9 @@ the two renderers' converged images):
   (x, -z, y); the cameras of transforms.json (OpenGL axes, glTF world) are
   mapped the same way.
 - wavetrace's environment mapping is Blender's (docs/lights.md), written in
-  +Y-up axes; its rotation R about +Y is Blender's rotation -R about +Z...
-  (sign checked by compare.py's mean test).
+  +Y-up axes; its rotation R about +Y is a Mapping node's rotation -R about
+  +Z (compare.py finds the sky pixels of the two references equal to four
+  digits at R = 30 degrees).
 - wavetrace's max_depth D counts path segments; Cycles' max_bounces counts
   bounces: D segments = D - 2 bounces (the last segment is the shadow ray).
 - Pixel filter: a box one pixel wide (wavetrace integrates over the pixel's
