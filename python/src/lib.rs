@@ -7,6 +7,8 @@
 //! for signals (Ctrl-C becomes `KeyboardInterrupt`, the render stops
 //! between tiles) and reporting progress between sample passes.
 
+mod views;
+
 use glam::Vec3;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
@@ -640,18 +642,27 @@ fn report(callback: &Bound<'_, PyAny>, before: u32, now: u32, total: u32) -> PyR
 /// The colour and its alpha (the fraction of the pixel's camera rays that
 /// hit something), and the other AOVs, as the arrays' buffers.
 fn buffers(film: &Film) -> Vec<(&'static str, Buffer)> {
-    let (w, h) = (film.width as usize, film.height as usize);
+    let size = (film.width as usize, film.height as usize);
+    buffers_of(size, film.to_rgb(), film.aov_images())
+}
+
+/// The arrays' buffers of a `(width, height)` image: the colour `rgb` with
+/// the `Alpha` AOV's as its fourth channel (1 without), and the other AOVs.
+fn buffers_of(
+    (w, h): (usize, usize),
+    rgb: Vec<[f32; 3]>,
+    mut aovs: Vec<(Aov, Vec<[f32; 3]>)>,
+) -> Vec<(&'static str, Buffer)> {
     let shape = |channels: usize| match channels {
         1 => vec![h, w],
         c => vec![h, w, c],
     };
-    let mut aovs = film.aov_images();
     let alpha = aovs
         .iter()
         .position(|(aov, _)| *aov == Aov::Alpha)
         .map(|k| aovs.remove(k).1);
-    let mut rgba = Vec::with_capacity(film.sums.len() * 4);
-    for (i, p) in film.to_rgb().into_iter().enumerate() {
+    let mut rgba = Vec::with_capacity(rgb.len() * 4);
+    for (i, p) in rgb.into_iter().enumerate() {
         let a = alpha.as_ref().map_or(1.0, |alpha| alpha[i][0]);
         rgba.extend_from_slice(&[p[0], p[1], p[2], a]);
     }
@@ -815,6 +826,8 @@ fn cornell() -> Scene {
 fn _wavetrace(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(cornell, m)?)?;
+    m.add_function(wrap_pyfunction!(views::views, m)?)?;
+    m.add_class::<views::Views>()?;
     m.add_class::<Scene>()?;
     m.add_class::<Camera>()?;
     m.add_class::<Buffer>()?;

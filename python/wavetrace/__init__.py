@@ -17,14 +17,15 @@ optional callback (or a ``tqdm`` bar). See docs/python.md.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Dict, Iterable, Optional, Sequence, Tuple, Union
+import warnings as _warnings
+from typing import Any, Callable, Dict, Iterable, Iterator, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _wavetrace
 from ._wavetrace import Camera, WavetraceError
 
-__all__ = ["Camera", "Scene", "WavetraceError", "cornell", "load"]
+__all__ = ["Camera", "Scene", "View", "Views", "WavetraceError", "cornell", "load", "views"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 Env = Union[str, "os.PathLike[str]", Sequence[float]]
@@ -187,3 +188,109 @@ def load(path: PathLike, camera: Optional[Union[str, int]] = None) -> Scene:
 def cornell() -> Scene:
     """The built-in Cornell box, ``wavetrace``'s default scene."""
     return Scene(_wavetrace.cornell())
+
+
+class View(NamedTuple):
+    """One view of a views job (see :func:`views`)."""
+
+    asset: str
+    """The asset's name (its output folder's in ``wavetrace views``)."""
+    view: int
+    """The view's index among the asset's views."""
+    arrays: Dict[str, np.ndarray]
+    """``color`` (H x W x 4 float32: linear RGB, denoised when the job
+    denoises, and alpha, 1 unless the job asks for ``alpha``) and one array
+    per AOV the job asks for: ``depth``/``zdepth`` (H x W, in the job's
+    world units), ``normal`` (world or camera axes, as the job says),
+    ``albedo``, ``variance`` (H x W x 3), ``object_id`` (H x W uint32)."""
+    camera: Camera
+    """The view's camera in the job's world (``transforms.json``'s)."""
+    objects: Dict[int, str]
+    """The asset's object-id legend ``{id: name}``."""
+    file: str
+    """The asset's file."""
+
+
+class Views:
+    """The views of a job as they are rendered: an iterator of :class:`View`.
+
+    Rendering runs on a thread of its own, at most one view ahead of the
+    consumer, with the GIL released; Ctrl-C stops it with
+    ``KeyboardInterrupt``; :meth:`close` (or dropping the iterator) stops
+    the job. Assets that cannot be loaded are skipped with a warning and
+    listed in :attr:`failed`."""
+
+    def __init__(self, native: Any, progress: Optional[Any]) -> None:
+        self._native = native
+        self._progress = progress
+        self._done = 0
+        self._ended = False
+
+    def __iter__(self) -> "Views":
+        return self
+
+    def __next__(self) -> View:
+        try:
+            item = next(self._native)
+        except StopIteration:
+            if not self._ended:
+                self._ended = True
+                for file, why in self.failed:
+                    _warnings.warn(f"wavetrace.views: skipped {file}: {why}", RuntimeWarning, stacklevel=2)
+            raise
+        asset, file, view, buffers, camera, objects = item
+        arrays = {name: np.asarray(buffer) for name, buffer in buffers}
+        self._done += 1
+        if self._progress is not None:
+            if hasattr(self._progress, "update") and not callable(self._progress):
+                self._progress.update(1)
+            else:
+                self._progress(self._done, self.total)
+        return View(asset, view, arrays, camera, dict(objects), str(file))
+
+    @property
+    def total(self) -> int:
+        """How many views this run renders (its shard's share)."""
+        return self._native.total
+
+    @property
+    def failed(self) -> list:
+        """``(asset file, error)`` for each asset that could not be rendered
+        (complete once the iteration has ended)."""
+        return self._native.failed
+
+    def close(self) -> None:
+        """Stop the job now."""
+        self._native.close()
+
+    def __enter__(self) -> "Views":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def views(
+    job: PathLike,
+    *,
+    threads: Optional[int] = None,
+    shard: Optional[Tuple[int, int]] = None,
+    engine: Optional[str] = None,
+    progress: Optional[Union[Callable[[int, int], Any], Any]] = None,
+) -> Views:
+    """Render a ``wavetrace views`` job file (docs/views.md) in memory,
+    yielding each view as a :class:`View` ``(asset, view, arrays, camera,
+    objects, file)``: every asset loaded and built once for all its views,
+    views in order, the same bits as the command line's files for the same
+    job, and no file written. ``shard=(i, n)`` renders the command line's
+    ``--shard i/n`` share; ``threads`` defaults to every core;
+    ``progress`` is called as ``progress(done, total)`` after each view
+    (or ``progress.update(1)`` on a ``tqdm`` bar)::
+
+        for v in wavetrace.views("job.toml", threads=8):
+            batch.append((v.arrays["color"], v.camera.matrix()))
+    """
+    import os
+
+    native = _wavetrace.views(os.fspath(job), threads=threads, shard=shard, engine=engine)
+    return Views(native, progress)

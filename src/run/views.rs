@@ -25,7 +25,7 @@ use super::views_cameras::{
 };
 use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
-use crate::film::AccMeta;
+use crate::film::{AccMeta, Film};
 use crate::fs::write_atomic;
 use crate::output::ExrLayer;
 use crate::output::view::ViewTransform;
@@ -261,6 +261,65 @@ pub fn run(
     stop: &(dyn Fn() -> bool + Sync),
     observe: &mut dyn FnMut(ViewsEvent),
 ) -> Result<ViewsReport> {
+    std::fs::create_dir_all(&options.out_dir)
+        .map_err(|e| crate::fs::FileError::new(&options.out_dir, e))?;
+    run_into(job, options, &mut Sink::Files, stop, observe)
+}
+
+/// A view rendered by [`stream`], in memory: what `run` would write.
+pub struct StreamedView<'a> {
+    /// The asset's name (its output folder's in `run`).
+    pub asset: &'a str,
+    /// The asset's file.
+    pub file: &'a Path,
+    /// The view's index among the asset's views.
+    pub view: u32,
+    /// The view's camera in the job's world (`transforms.json`'s).
+    pub camera: &'a Pose,
+    /// How the asset's coordinates map to the job's world (depths in the
+    /// job's world units are the film's times `scale`).
+    pub normalisation: &'a Normalisation,
+    /// The film as accumulated (sample counts, hits).
+    pub film: &'a Film,
+    /// The AOVs the job asks for, as `run` writes them: depths in the
+    /// job's world units, normals in the axes the job asks for.
+    pub aovs: Vec<(Aov, Vec<[f32; 3]>)>,
+    /// The colour as `run` writes it (denoised when the job denoises).
+    pub rgb: &'a [[f32; 3]],
+    /// The asset's object-id legend, `(id, name)`.
+    pub objects: &'a [(u32, String)],
+}
+
+/// Render `job`'s share (`options.shard`; `options.out_dir` is not used)
+/// in memory, handing each view to `each` in order; nothing is written
+/// and nothing is skipped. `each` returns false to end the job early (the
+/// report then says `stopped`). Broken assets are reported as by [`run`].
+/// A view's colour and AOVs are the bits `run` writes for it.
+pub fn stream(
+    job: &ViewsJob,
+    options: &ViewsOptions,
+    stop: &(dyn Fn() -> bool + Sync),
+    observe: &mut dyn FnMut(ViewsEvent),
+    each: &mut dyn FnMut(StreamedView) -> Result<bool>,
+) -> Result<ViewsReport> {
+    run_into(job, options, &mut Sink::Memory(each), stop, observe)
+}
+
+/// Where rendered views go.
+enum Sink<'a> {
+    /// Files in the output directory, with records (resumable).
+    Files,
+    /// A caller's function ([`stream`]).
+    Memory(&'a mut dyn FnMut(StreamedView) -> Result<bool>),
+}
+
+fn run_into(
+    job: &ViewsJob,
+    options: &ViewsOptions,
+    sink: &mut Sink,
+    stop: &(dyn Fn() -> bool + Sync),
+    observe: &mut dyn FnMut(ViewsEvent),
+) -> Result<ViewsReport> {
     let views = job.view_count();
     let pairs = job.assets.len() as u64 * u64::from(views);
     let share = shard_pairs(pairs, options.shard);
@@ -275,8 +334,6 @@ pub fn run(
         true => Some(Denoiser::new()?),
         false => None,
     };
-    std::fs::create_dir_all(&options.out_dir)
-        .map_err(|e| crate::fs::FileError::new(&options.out_dir, e))?;
     let names = asset_names(&job.assets);
     let job_hash = job.settings_hash();
     let per_asset = u64::from(views.max(1));
@@ -294,12 +351,20 @@ pub fn run(
         let range = lo as u32..hi as u32;
         let work = AssetWork {
             job,
+            name,
             options,
             job_hash,
             path,
             dir: options.out_dir.join(name),
         };
-        match work.run(range.clone(), &mut asset, &mut denoiser, stop, observe) {
+        match work.run(
+            range.clone(),
+            &mut asset,
+            &mut denoiser,
+            sink,
+            stop,
+            observe,
+        ) {
             Ok(done) => {
                 report.rendered += u64::from(asset.views_rendered);
                 report.skipped += u64::from(asset.views_skipped);
@@ -329,6 +394,8 @@ fn stops_the_job(e: &Error) -> bool {
 /// One asset's share of a job.
 struct AssetWork<'a> {
     job: &'a ViewsJob,
+    /// The asset's name (its folder's).
+    name: &'a str,
     options: &'a ViewsOptions,
     job_hash: u128,
     path: &'a Path,
@@ -405,15 +472,17 @@ impl AssetWork<'_> {
         range: std::ops::Range<u32>,
         report: &mut AssetReport,
         denoiser: &mut Option<Denoiser>,
+        sink: &mut Sink,
         stop: &(dyn Fn() -> bool + Sync),
         observe: &mut dyn FnMut(ViewsEvent),
     ) -> Result<bool> {
         let hash = asset_hash(self.path)?;
-        let todo: Vec<u32> = range.clone().filter(|&i| !self.finished(i, hash)).collect();
-        let have_cameras = self
-            .asset_files()
-            .iter()
-            .all(|f| self.dir.join(f).is_file());
+        let files = matches!(sink, Sink::Files);
+        let todo: Vec<u32> = (range.clone())
+            .filter(|&i| !files || !self.finished(i, hash))
+            .collect();
+        let have_cameras =
+            !files || (self.asset_files().iter()).all(|f| self.dir.join(f).is_file());
         for i in range.clone().filter(|i| !todo.contains(i)) {
             report.views_skipped += 1;
             observe(ViewsEvent::View {
@@ -436,21 +505,8 @@ impl AssetWork<'_> {
         let (wlo, whi) = ((lo - n.centre) * n.scale, (hi - n.centre) * n.scale);
         let camera_seed = |i: u32| derive(self.job_hash, hash, i, b"camera");
         let poses = poses(job, wlo, whi, &camera_seed);
-        std::fs::create_dir_all(self.dir.join("manifest"))
-            .map_err(|e| crate::fs::FileError::new(&self.dir, e))?;
-        let colour: Vec<String> = (0..job.view_count())
-            .map(|i| self.files(i)[0].clone())
-            .collect();
-        write_text(
-            &self.dir.join("transforms.json"),
-            &transforms_json(&poses, &colour),
-        )?;
-        write_text(
-            &self.dir.join("cameras.json"),
-            &opencv_json(&poses, &colour),
-        )?;
-        if job.outputs.aovs.contains(Aov::ObjectId) {
-            write_text(&self.dir.join(LEGEND), &legend_json(&scene.objects))?;
+        if files {
+            self.write_cameras(&poses, &scene)?;
         }
         if todo.is_empty() {
             return Ok(true);
@@ -464,6 +520,12 @@ impl AssetWork<'_> {
         }
         let settings = self.settings(&scene);
         let mut renderer = Renderer::new(&scene, &settings)?;
+        let objects: Vec<(u32, String)> = match files {
+            true => Vec::new(),
+            false => (scene.objects.legend())
+                .map(|(id, name)| (id, name.to_string()))
+                .collect(),
+        };
         report.build_seconds = t.elapsed().as_secs_f64();
         for &i in &todo {
             if stop() {
@@ -484,9 +546,10 @@ impl AssetWork<'_> {
                 seed: view_seed(self.job_hash, hash, i),
                 asset_hash: hash,
                 transparent: scene.has_transparent_background(),
+                objects: &objects,
             };
             let Some((render_seconds, write_seconds, resumed)) =
-                self.view(&mut renderer, &view, denoiser, stop)?
+                self.view(&mut renderer, &view, denoiser, sink, stop)?
             else {
                 return Ok(false);
             };
@@ -503,6 +566,25 @@ impl AssetWork<'_> {
             });
         }
         Ok(true)
+    }
+
+    /// The asset's files about all its views: the camera files, and the
+    /// object-id legend when the views have object ids.
+    fn write_cameras(&self, poses: &[Pose], scene: &Scene) -> Result<()> {
+        std::fs::create_dir_all(self.dir.join("manifest"))
+            .map_err(|e| crate::fs::FileError::new(&self.dir, e))?;
+        let colour: Vec<String> = (0..self.job.view_count())
+            .map(|i| self.files(i)[0].clone())
+            .collect();
+        write_text(
+            &self.dir.join("transforms.json"),
+            &transforms_json(poses, &colour),
+        )?;
+        write_text(&self.dir.join("cameras.json"), &opencv_json(poses, &colour))?;
+        if self.job.outputs.aovs.contains(Aov::ObjectId) {
+            write_text(&self.dir.join(LEGEND), &legend_json(&scene.objects))?;
+        }
+        Ok(())
     }
 
     /// The render settings of this asset's views.
@@ -555,20 +637,23 @@ impl AssetWork<'_> {
         env
     }
 
-    /// Render and write one view; `None` when `stop` ended it (nothing
-    /// written). Returns the seconds tracing paths and the seconds on the
+    /// Render one view and write it (or hand it to the sink's function);
+    /// `None` when `stop` ended it (nothing written) or the function said
+    /// to end. Returns the seconds tracing paths and the seconds on the
     /// rest.
     fn view(
         &self,
         renderer: &mut Renderer,
         view: &View,
         denoiser: &mut Option<Denoiser>,
+        sink: &mut Sink,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(f64, f64, u64)>> {
         let (w, h) = (self.job.render.width, self.job.render.height);
         renderer.set_view(&view.n.camera(view.pose), view.seed);
         let t = Instant::now();
-        let Some((film, resumed)) = self.render(renderer, view, stop)? else {
+        let files = matches!(sink, Sink::Files);
+        let Some((film, resumed)) = self.render(renderer, view, files, stop)? else {
             return Ok(None);
         };
         let render_seconds = t.elapsed().as_secs_f64();
@@ -582,6 +667,23 @@ impl AssetWork<'_> {
                 normal: layer(Aov::Normal).expect("denoise accumulates normal"),
             };
             rgb = d.denoise(w, h, &rgb, Some(aux))?;
+        }
+        if let Sink::Memory(each) = sink {
+            let streamed = StreamedView {
+                asset: self.name,
+                file: self.path,
+                view: view.index,
+                camera: view.pose,
+                normalisation: view.n,
+                film: &film,
+                aovs: (aovs.iter())
+                    .map(|(aov, pixels)| (*aov, self.in_job_world(*aov, pixels, view)))
+                    .collect(),
+                rgb: &rgb,
+                objects: view.objects,
+            };
+            let write_seconds = t.elapsed().as_secs_f64();
+            return Ok(each(streamed)?.then_some((render_seconds, write_seconds, 0)));
         }
         let files = self.files(view.index);
         let mut names = files.iter();
@@ -624,7 +726,7 @@ impl AssetWork<'_> {
             let pixels = layer(aov).expect("accumulated");
             match aov {
                 Aov::ObjectId => crate::output::write_id_png(&path, w, h, pixels)?,
-                _ => self.write_aov(&path, aov, pixels, view)?,
+                _ => self.write_aov(&path, aov, &self.in_job_world(aov, pixels, view))?,
             }
         }
         self.write_record(view, &files)?;
@@ -643,12 +745,14 @@ impl AssetWork<'_> {
     /// is one of this very view (same job, asset, view and seed, size and
     /// AOVs); the checkpoint is saved every
     /// [`checkpoint_every`](ViewsOptions::checkpoint_every) and when
-    /// `stop` ends the view (`None`). Returns the film and the samples per
-    /// pixel it resumed with.
+    /// `stop` ends the view (`None`). Without `checkpoints` ([`stream`])
+    /// none is read or written. Returns the film and the samples per pixel
+    /// it resumed with.
     fn render(
         &self,
         renderer: &Renderer,
         view: &View,
+        checkpoints: bool,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(crate::film::Film, u64)>> {
         let spp = self.job.render.spp;
@@ -664,8 +768,8 @@ impl AssetWork<'_> {
             shard: None,
         };
         let target = 0..spp;
-        let mut film = crate::film::Film::load_with_meta(&path, Some(meta.settings_hash))
-            .ok()
+        let mut film = (checkpoints.then(|| Film::load_with_meta(&path, Some(meta.settings_hash))))
+            .and_then(|r| r.ok())
             .filter(|(f, m)| {
                 m.spp == Some(spp)
                     && crate::run::session::check_resumable(f, renderer.settings(), &target).is_ok()
@@ -674,7 +778,7 @@ impl AssetWork<'_> {
         let resumed = film.samples_per_pixel();
         let (mut saved, mut since) = (resumed, Instant::now());
         let save = |film: &crate::film::Film, saved: &mut u64| -> Result<()> {
-            if film.samples_per_pixel() > *saved {
+            if checkpoints && film.samples_per_pixel() > *saved {
                 film.save_with_meta(&path, &meta)?;
                 *saved = film.samples_per_pixel();
             }
@@ -708,58 +812,57 @@ impl AssetWork<'_> {
         Ok(Some((film, resumed)))
     }
 
-    /// Write AOV `aov` of a view as an EXR: depth (`Z`, in the job's world
-    /// units), normal (`X`, `Y`, `Z`, world or camera axes), albedo (`R`,
-    /// `G`, `B`), with its convention in the header.
-    fn write_aov(&self, path: &Path, aov: Aov, pixels: &[[f32; 3]], view: &View) -> Result<()> {
+    /// AOV `aov` of a view as the views give it: depths in the job's world
+    /// units (the film's times the normalisation's scale), normals in the
+    /// world's axes or, when the job asks, the camera's (OpenCV: x right,
+    /// y down, z forward); the others as accumulated.
+    fn in_job_world(&self, aov: Aov, pixels: &[[f32; 3]], view: &View) -> Vec<[f32; 3]> {
+        let (s, p) = (view.n.scale, view.pose);
+        match aov {
+            Aov::Depth | Aov::ZDepth => pixels.iter().map(|d| [d[0] * s, d[1], d[2]]).collect(),
+            Aov::Normal if self.job.outputs.camera_normals => (pixels.iter())
+                .map(|n| {
+                    let n = Vec3::from_array(*n);
+                    [p.right.dot(n), -p.up.dot(n), p.forward.dot(n)]
+                })
+                .collect(),
+            _ => pixels.to_vec(),
+        }
+    }
+
+    /// Write AOV `aov` of a view (as [`in_job_world`](Self::in_job_world)
+    /// gives it) as an EXR: depth (`Z`), normal (`X`, `Y`, `Z`), albedo and
+    /// variance (`R`, `G`, `B`), with its convention in the header.
+    fn write_aov(&self, path: &Path, aov: Aov, pixels: &[[f32; 3]]) -> Result<()> {
         let (w, h) = (self.job.render.width, self.job.render.height);
-        let s = view.n.scale;
-        let p = view.pose;
-        let (channels, planes, note): (&[&str], Vec<Vec<f32>>, &str) = match aov {
+        let plane = |k: usize| pixels.iter().map(|v| v[k]).collect::<Vec<f32>>();
+        let (channels, note): (&[&str], &str) = match aov {
             Aov::Depth => (
                 &["Z"],
-                vec![pixels.iter().map(|d| d[0] * s).collect()],
                 "depth: distance from the camera centre along the ray to the first hit (not z), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
             ),
             Aov::ZDepth => (
                 &["Z"],
-                vec![pixels.iter().map(|d| d[0] * s).collect()],
                 "zdepth: distance from the camera centre along the camera's forward (optical, OpenCV +z) axis to the first hit, = depth * cos(angle of the ray to that axis), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
             ),
             Aov::Variance => (
                 &["R", "G", "B"],
-                (0..3)
-                    .map(|k| pixels.iter().map(|v| v[k]).collect())
-                    .collect(),
                 "variance: unbiased sample variance of the radiance per channel (of one sample; the pixel mean's is this / spp), linear",
             ),
-            Aov::Normal if self.job.outputs.camera_normals => {
-                let cam = |n: &[f32; 3]| {
-                    let n = Vec3::from_array(*n);
-                    [p.right.dot(n), -p.up.dot(n), p.forward.dot(n)]
-                };
-                let c: Vec<[f32; 3]> = pixels.iter().map(cam).collect();
-                (
-                    &["X", "Y", "Z"],
-                    (0..3).map(|k| c.iter().map(|v| v[k]).collect()).collect(),
-                    "normal: shading normal at the first non-specular hit, camera axes (OpenCV: x right, y down, z forward), mean over samples, not renormalised, 0 where none",
-                )
-            }
+            Aov::Normal if self.job.outputs.camera_normals => (
+                &["X", "Y", "Z"],
+                "normal: shading normal at the first non-specular hit, camera axes (OpenCV: x right, y down, z forward), mean over samples, not renormalised, 0 where none",
+            ),
             Aov::Normal => (
                 &["X", "Y", "Z"],
-                (0..3)
-                    .map(|k| pixels.iter().map(|v| v[k]).collect())
-                    .collect(),
                 "normal: shading normal at the first non-specular hit, world axes, mean over samples, not renormalised, 0 where none",
             ),
             _ => (
                 &["R", "G", "B"],
-                (0..3)
-                    .map(|k| pixels.iter().map(|v| v[k]).collect())
-                    .collect(),
                 "albedo: reflectance at the first non-specular hit, linear, mean over samples",
             ),
         };
+        let planes = (0..channels.len()).map(plane).collect();
         write_exr_channels(path, (w, h), channels, planes, note)
     }
 
@@ -809,6 +912,8 @@ struct View<'a> {
     n: &'a Normalisation,
     seed: u64,
     asset_hash: u128,
+    /// The asset's object-id legend (filled for [`stream`] only).
+    objects: &'a [(u32, String)],
     /// Whether the view's background is transparent (its environment is
     /// not visible): the colour PNG is then straight, divided by the alpha.
     transparent: bool,
