@@ -455,6 +455,16 @@ impl SceneBuilder {
         // Tangents go by the transform itself; a mirroring one turns the
         // bitangent's handedness.
         let hand = if mirrored { -1.0 } else { 1.0 };
+        // Room for the mesh at once (not grown by doubling, copy by copy).
+        let n = mesh.triangles.len();
+        self.triangles.reserve(n);
+        self.triangle_objects.reserve(n);
+        if !mesh.normals.is_empty() {
+            self.vertex_normals.reserve(n);
+        }
+        if !mesh.uv0.is_empty() || !mesh.uv1.is_empty() {
+            self.uv.reserve(n);
+        }
         let tangents: Vec<[f32; 4]> = (mesh.tangents.iter())
             .map(|t| {
                 let v = transform.transform_vector3(Vec3::new(t[0], t[1], t[2]));
