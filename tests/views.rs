@@ -767,3 +767,43 @@ fn a_view_stopped_inside_goes_on_from_its_checkpoint() {
     assert_eq!((foreign.rendered, resumed), (1, 0));
     same_trees(&dir.join("one"), &out, "a foreign checkpoint ignored");
 }
+
+/// A job's `[[light]]` sun lights every view: a grey floor under a sun of
+/// irradiance E at 45°, nothing else, has the radiance ρ E cos θ / π; a
+/// point light is refused, naming the entry.
+#[test]
+fn a_job_sun_lights_the_views_as_the_closed_form_says() {
+    let dir = TempDir::new("sun");
+    let scene = "[camera]\nposition = [0.0, 0.0, 5.0]\nforward = [0.0, 0.0, -1.0]\nup = [0.0, 1.0, 0.0]\nfocal_length_px = 64.0\nwidth = 8\nheight = 8\n\n[materials.grey]\nreflectance = [0.5, 0.5, 0.5]\n\n[[quad]]\nname = \"floor\"\nmaterial = \"grey\"\nvertices = [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0]]\n";
+    std::fs::write(dir.join("floor.toml"), scene).unwrap();
+    let cams = r#"{"camera_angle_x": 0.6981317, "frames": [
+  {"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,2],[0,0,0,1]]} ]}"#;
+    std::fs::write(dir.join("cams.json"), cams).unwrap();
+    let job = |light: &str| {
+        format!(
+            "[assets]\nfiles = [\"floor.toml\"]\n\n[cameras]\nkind = \"explicit\"\nfile = \"cams.json\"\n\n[[environment]]\ncolor = [0.0, 0.0, 0.0]\n\n{light}\n[render]\nwidth = 16\nheight = 16\nspp = 64\nmax_depth = 2\n\n[outputs]\ncolor = [\"exr\"]\n"
+        )
+    };
+    let sun = "[[light]]\ntype = \"sun\"\ndirection = [0.0, -1.0, -1.0]\nirradiance = 3.0\n";
+    std::fs::write(dir.join("job.toml"), job(sun)).unwrap();
+    let parsed = ViewsJob::load(&dir.join("job.toml")).unwrap();
+    let r = run_job(&parsed, &options(&dir.join("out"), None, 2));
+    assert_eq!((r.rendered, r.failed().count()), (1, 0), "{r:?}");
+    let (red, _) = exr_channel(&dir.join("out/floor/0.exr"), "R");
+    // The middle 4×4 pixels see only the floor (it spans ±18° of the axis).
+    let want = 0.5 * 3.0 * std::f32::consts::FRAC_1_SQRT_2 / std::f32::consts::PI;
+    for y in 6..10 {
+        for x in 6..10 {
+            let got = red[y * 16 + x];
+            assert!(
+                (got - want).abs() < 0.02 * want,
+                "({x}, {y}): {got} vs {want}"
+            );
+        }
+    }
+    // Only suns: a point light's place would depend on each asset.
+    let point = "[[light]]\ntype = \"point\"\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0\n";
+    let file = dir.join("job.toml").display().to_string();
+    let e = ViewsJob::parse(&job(point), &file).unwrap_err().to_string();
+    assert!(e.contains("light[0].type") && e.contains("suns"), "{e}");
+}

@@ -241,6 +241,7 @@ impl ViewsArgs {
             cameras,
             target: None,
             environments,
+            lights: Vec::new(),
             random_rotation: self.random_rotation,
             render: ViewsRender {
                 width: positive(self.width, "--width")?.unwrap_or(DEFAULT_SIZE),

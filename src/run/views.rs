@@ -498,6 +498,7 @@ impl AssetWork<'_> {
         }
         let t = Instant::now();
         let (mut scene, lo, hi) = load_asset(self.path)?;
+        scene.lights.extend(self.job.lights.iter().cloned());
         report.load_seconds = t.elapsed().as_secs_f64();
         report.triangles = scene.triangles.len();
         let job = self.job;

@@ -44,6 +44,8 @@ pub struct ViewsJob {
     /// TOML scene's environment and emitters; the default sky for an
     /// asset that has no emitter).
     pub environments: Vec<Environment>,
+    /// Suns added to every view's lighting (`[[light]]`, type `sun`).
+    pub lights: Vec<super::punctual::PunctualLight>,
     /// Turn the environment by a seeded random angle about +Y per view.
     pub random_rotation: bool,
     /// The render settings.
@@ -202,6 +204,7 @@ impl ViewsJob {
             environments.extend(env);
         }
         let random_rotation = raw.lighting.as_ref().is_some_and(|l| l.random_rotation);
+        let lights = suns(&t, &raw.lights)?;
         Ok(Self {
             file: file.to_string(),
             assets,
@@ -209,6 +212,7 @@ impl ViewsJob {
             cameras,
             target,
             environments,
+            lights,
             random_rotation,
             render: render(&t, raw.render.as_ref())?,
             outputs: outputs(&t, raw.outputs.as_ref())?,
@@ -239,8 +243,34 @@ impl ViewsJob {
         for env in &self.environments {
             env.hash_into(&mut h);
         }
+        // (Jobs without lights hash as before lights existed.)
+        for light in &self.lights {
+            light.hash_into(&mut h);
+        }
         h.digest128()
     }
+}
+
+/// The job's `[[light]]`s: suns only (a sun has no position, so it means
+/// the same for every asset, normalised or not).
+fn suns(
+    t: &Text,
+    raw: &[Spanned<super::punctual::LightFile>],
+) -> Result<Vec<super::punctual::PunctualLight>, SceneError> {
+    let mut out = Vec::new();
+    for (k, l) in raw.iter().enumerate() {
+        let light = super::punctual::from_file(k, l.get_ref())
+            .map_err(|(span, field, m)| t.err(span, &field, m))?;
+        if !matches!(light.shape, super::punctual::LightShape::Sun { .. }) {
+            return Err(t.err(
+                l.span(),
+                &format!("light[{k}].type"),
+                "a views job's lights are suns: a point or spot light's place would depend on each asset (put it in a TOML scene that places the asset)",
+            ));
+        }
+        out.push(light);
+    }
+    Ok(out)
 }
 
 #[derive(Deserialize)]
@@ -250,6 +280,8 @@ struct JobFile {
     cameras: Option<Spanned<CamerasFile>>,
     #[serde(default)]
     environment: Vec<Spanned<EnvironmentFile>>,
+    #[serde(default, rename = "light")]
+    lights: Vec<Spanned<super::punctual::LightFile>>,
     lighting: Option<LightingFile>,
     render: Option<RenderFile>,
     outputs: Option<OutputsFile>,
