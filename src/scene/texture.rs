@@ -293,15 +293,19 @@ impl Texture {
             }
         }
         // The size its header declares, checked against what its bytes
-        // can hold before any texel is allocated.
-        let (w, h) = ImageReader::new(std::io::Cursor::new(bytes))
+        // can hold before any texel is allocated. (A header the size cannot
+        // be read from is left to the decoder below, under its limits, to
+        // refuse and name.)
+        let size = ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
-            .and_then(|r| r.into_dimensions().map_err(std::io::Error::other))
-            .map_err(|e| TextureError(format!("cannot read the image: {e}")))?;
+            .ok()
+            .and_then(|r| r.into_dimensions().ok());
         let most = (bytes.len() as u64)
             .saturating_mul(MAX_TEXELS_PER_BYTE)
             .saturating_add(1 << 16);
-        if u64::from(w) * u64::from(h) > most {
+        if let Some((w, h)) = size
+            && u64::from(w) * u64::from(h) > most
+        {
             return Err(TextureError(format!(
                 "an image of {w} × {h} texels in {} bytes: more than such a file can hold \
                  ({MAX_TEXELS_PER_BYTE} texels a byte)",
