@@ -28,6 +28,7 @@ use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
 use crate::fs::{FileError, write_atomic};
 use crate::scene::Aov;
+use image::ExtendedColorType as ColorType;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use view::ViewTransform;
@@ -100,20 +101,7 @@ pub fn write_image_viewed(
     assert_eq!(rgb.len(), width as usize * height as usize);
     let format = ImageFormat::from_path(path)?;
     let written = match format {
-        ImageFormat::Png => {
-            let bytes = view.bytes(rgb);
-            write_atomic(path, |w| {
-                image::write_buffer_with_format(
-                    w,
-                    &bytes,
-                    width,
-                    height,
-                    image::ExtendedColorType::Rgb8,
-                    image::ImageFormat::Png,
-                )
-                .map_err(std::io::Error::other)
-            })
-        }
+        ImageFormat::Png => write_png(path, &view.bytes(rgb), (width, height), ColorType::Rgb8),
         ImageFormat::Pfm => write_atomic(path, |w| {
             write!(w, "PF\n{width} {height}\n-1.0\n")?;
             // PFM rows run bottom to top.
@@ -219,17 +207,7 @@ pub fn write_id_png(path: &Path, width: u32, height: u32, ids: &[[f32; 3]]) -> R
         .iter()
         .flat_map(|p| (p[0] as u16).to_ne_bytes()) // (the image crate writes them big-endian)
         .collect();
-    Ok(write_atomic(path, |w| {
-        image::write_buffer_with_format(
-            w,
-            &bytes,
-            width,
-            height,
-            image::ExtendedColorType::L16,
-            image::ImageFormat::Png,
-        )
-        .map_err(std::io::Error::other)
-    })?)
+    Ok(write_png(path, &bytes, (width, height), ColorType::L16)?)
 }
 
 /// Write an RGBA PNG, atomically: the colour `rgb` (premultiplied, as the
@@ -269,17 +247,21 @@ pub fn write_rgba_png_straight(
         bytes.extend_from_slice(c);
         bytes.push((a[0].clamp(0.0, 1.0) * 255.0).round() as u8);
     }
-    Ok(write_atomic(path, |w| {
-        image::write_buffer_with_format(
-            w,
-            &bytes,
-            width,
-            height,
-            image::ExtendedColorType::Rgba8,
-            image::ImageFormat::Png,
-        )
-        .map_err(std::io::Error::other)
-    })?)
+    Ok(write_png(path, &bytes, (width, height), ColorType::Rgba8)?)
+}
+
+/// Write `bytes` (pixels of type `colour`, rows top to bottom) as a PNG,
+/// atomically.
+fn write_png(
+    path: &Path,
+    bytes: &[u8],
+    (width, height): (u32, u32),
+    colour: ColorType,
+) -> std::result::Result<(), FileError> {
+    write_atomic(path, |w| {
+        image::write_buffer_with_format(w, bytes, width, height, colour, image::ImageFormat::Png)
+            .map_err(std::io::Error::other)
+    })
 }
 
 /// Write a linear RGB image with AOV images `aovs` (each of the image's
