@@ -16,13 +16,13 @@ fn shipped_hashes_are_the_images_rendered() {
     let mut table = String::new();
     let mut wrong = Vec::new();
     for w0 in workloads(SuiteSize::Full) {
-        let scene = w0.scene.load();
         for size in [SuiteSize::Full, SuiteSize::Quick, SuiteSize::Tiny] {
             let w = workloads(size)
                 .into_iter()
                 .find(|w| w.name == w0.name)
                 .unwrap();
-            let (_, hash) = render_workload(&w, &scene, threads).unwrap();
+            let prepared = w.prepare().unwrap();
+            let hash = render_workload(&w, &prepared, threads).unwrap().hash;
             table += &format!("    ({:?}, SuiteSize::{size:?}, {hash:?}),\n", w.name);
             if w.expected_hash(size) != Some(hash.as_str()) {
                 wrong.push(format!(
@@ -33,7 +33,7 @@ fn shipped_hashes_are_the_images_rendered() {
             }
         }
     }
-    assert_eq!(EXPECTED_HASHES.len(), 9, "one hash per workload and size");
+    assert_eq!(EXPECTED_HASHES.len(), 12, "one hash per workload and size");
     assert!(
         wrong.is_empty(),
         "the shipped bench hashes are not what this build renders:\n{}\n\
@@ -46,7 +46,7 @@ fn shipped_hashes_are_the_images_rendered() {
 #[test]
 fn one_thread_gives_the_same_hashes() {
     for w in workloads(SuiteSize::Tiny) {
-        let (_, hash) = render_workload(&w, &w.scene.load(), 1).unwrap();
+        let hash = render_workload(&w, &w.prepare().unwrap(), 1).unwrap().hash;
         assert_eq!(
             Some(hash.as_str()),
             w.expected_hash(SuiteSize::Tiny),
@@ -75,7 +75,12 @@ fn bench_json_and_compare() {
     let out = stdout(&o);
     assert!(out.contains("VERIFIED: every image matches"), "{out}");
     assert!(!out.contains("MISMATCH"), "{out}");
-    for w in ["cornell-report", "cornell-default", "sphere-1m"] {
+    for w in [
+        "cornell-report",
+        "cornell-default",
+        "sphere-1m",
+        "asset-views",
+    ] {
         assert!(out.contains(w), "{out}");
     }
     assert!(out.contains("single thread"), "{out}");
@@ -83,7 +88,10 @@ fn bench_json_and_compare() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("a.json")).unwrap()).unwrap();
     assert_eq!(json["verified"], true);
     assert_eq!(json["size"], "tiny");
-    assert_eq!(json["workloads"].as_array().unwrap().len(), 3);
+    assert_eq!(json["workloads"].as_array().unwrap().len(), 4);
+    assert_eq!(json["workloads"][3]["images"], 12);
+    assert!(out.contains("12 images 32x32"), "{out}");
+    assert!(out.contains("images/hour on 2 thread(s)"), "{out}");
     let runs = json["workloads"][0]["runs"].as_array().unwrap();
     assert_eq!(runs.len(), 2);
     assert_eq!(runs[0]["seconds"].as_array().unwrap().len(), 2);
@@ -156,7 +164,7 @@ fn bench_says_busy_when_other_processes_use_the_cpu() {
     let out = run(
         dir.path(),
         // Enough repeats of the tiny suite for the CPU time to be counted.
-        &["bench", "--tiny", "--repeats", "200", "--threads", "1"],
+        &["bench", "--tiny", "--repeats", "50", "--threads", "1"],
     );
     drop(spinners);
     let text = stdout(&out);

@@ -181,8 +181,20 @@ pub fn table(r: &BenchReport) -> String {
     for w in &r.workloads {
         let got = w.hashes.join(", ");
         if w.verified {
+            // A views job makes many images; say how many an hour.
+            let (images, per_hour) = match (w.images, w.runs.last()) {
+                (n @ 2.., Some(t)) => (
+                    format!("{n} images"),
+                    format!(
+                        ", {:.0} images/hour on {} thread(s)",
+                        f64::from(n) * 3600.0 / t.median_seconds,
+                        t.threads
+                    ),
+                ),
+                _ => ("image".into(), String::new()),
+            };
             s += &format!(
-                "{:<16} VERIFIED  image {}x{}, {} spp, depth {}, {} / {}, {} triangles: hash {got}\n",
+                "{:<16} VERIFIED  {images} {}x{}, {} spp, depth {}, {} / {}, {} triangles{per_hour}: hash {got}\n",
                 w.name, w.width, w.height, w.spp, w.max_depth, w.integrator, w.sampler, w.triangles
             );
         } else {

@@ -11,15 +11,19 @@
 
 use crate::error::{Error, Result};
 use crate::film::Film;
-use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, RenderSettings, Renderer};
+use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, Engine, RenderSettings, Renderer};
+use crate::run::views::{self, DEFAULT_CHECKPOINT_EVERY, ViewsOptions};
+use crate::scene::views_job::ViewsJob;
 use crate::scene::{Integrator, SamplerKind, Scene};
 use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// The version of the suite: bumped whenever a workload's scene or
 /// settings change, so scores of different suites are never compared as
 /// equals. (A change of rendering code changes the hashes, not the suite.)
-pub const SUITE_VERSION: u32 = 1;
+/// Version 2 added the `asset-views` workload.
+pub const SUITE_VERSION: u32 = 2;
 
 /// The source of the million-triangle scene, built in so the suite needs
 /// no files.
@@ -41,6 +45,9 @@ pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
     ("sphere-1m", SuiteSize::Full, "379cfc6e6825943c"),
     ("sphere-1m", SuiteSize::Quick, "b5069d2f48863aed"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
+    ("asset-views", SuiteSize::Full, "32d9160b60b6610d"),
+    ("asset-views", SuiteSize::Quick, "ce4e21daa07f7878"),
+    ("asset-views", SuiteSize::Tiny, "98003d868d0be50b"),
 ];
 
 /// How big the suite's renders are.
@@ -75,16 +82,219 @@ pub enum BenchScene {
     /// `scenes/sphere-1m.toml` ([`SPHERE_1M_TOML`]): the Cornell box and a
     /// geodesic sphere of 1,003,520 triangles, generated on load.
     Sphere1m,
+    /// A `wavetrace views` job ([`views_job_toml`]): the shipped textured
+    /// asset (`scenes/textured.glb`, [`VIEWS_ASSET`]) under the shipped sky
+    /// (`scenes/env/sky.exr`, [`VIEWS_SKY`]), turned by a seeded angle per
+    /// view, with depth and normals. A render is the whole job: loading
+    /// the asset and building its tables once, then every view.
+    AssetViews,
+}
+
+/// The views workload's asset, built in so the suite needs no files.
+pub const VIEWS_ASSET: &[u8] = include_bytes!("../../scenes/textured.glb");
+
+/// The views workload's environment.
+pub const VIEWS_SKY: &[u8] = include_bytes!("../../scenes/env/sky.exr");
+
+/// The views workload's job at `res`² pixels and `spp` samples per pixel:
+/// a dozen views (an orbit of six at two elevations) of [`VIEWS_ASSET`],
+/// normalised, under [`VIEWS_SKY`] turned by a seeded angle per view.
+pub fn views_job_toml(res: u32, spp: u32) -> String {
+    format!(
+        r#"[assets]
+files = ["textured.glb"]
+normalize = true
+
+[cameras]
+kind = "orbit"
+views = 6
+elevations = [15.0, 40.0]
+fov = 40.0
+distance = 1.6
+
+[[environment]]
+file = "sky.exr"
+
+[lighting]
+random_rotation = true
+
+[render]
+width = {res}
+height = {res}
+spp = {spp}
+seed = 1
+max_depth = 5
+
+[outputs]
+color = ["png"]
+aov = ["depth", "normal"]
+"#
+    )
 }
 
 impl BenchScene {
-    /// The scene, built or generated.
-    pub fn load(self) -> Scene {
+    /// The scene, built or generated; `None` for [`BenchScene::AssetViews`]
+    /// (a job, not a scene: see [`Workload::prepare`]).
+    pub fn load(self) -> Option<Scene> {
         match self {
-            Self::Cornell => Scene::cornell(),
-            Self::Sphere1m => crate::scene::file::parse(SPHERE_1M_TOML, "scenes/sphere-1m.toml")
-                .expect("the built-in sphere-1m scene parses"),
+            Self::Cornell => Some(Scene::cornell()),
+            Self::Sphere1m => Some(
+                crate::scene::file::parse(SPHERE_1M_TOML, "scenes/sphere-1m.toml")
+                    .expect("the built-in sphere-1m scene parses"),
+            ),
+            Self::AssetViews => None,
         }
+    }
+}
+
+/// A workload made ready to time: its scene loaded, or its views job
+/// written to a folder of its own (removed when this is dropped).
+pub enum Prepared {
+    /// A scene rendered as one image.
+    Scene(Box<Scene>),
+    /// A views job.
+    Views(Box<ViewsBench>),
+}
+
+/// The views workload's job, read from a temporary folder that holds it,
+/// its asset and its environment.
+pub struct ViewsBench {
+    job: ViewsJob,
+    dir: TempFolder,
+}
+
+/// A folder removed, with what it holds, when this is dropped.
+struct TempFolder(PathBuf);
+
+impl Drop for TempFolder {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+impl ViewsBench {
+    /// Write [`VIEWS_ASSET`], [`VIEWS_SKY`] and the job of `w` to a new
+    /// folder in the system's temporary directory, and read the job.
+    fn new(w: &Workload) -> Result<Self> {
+        static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "wavetrace-bench-{}-{}",
+            std::process::id(),
+            COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
+        // Left over by an earlier process of the same id.
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).map_err(|e| crate::fs::FileError::new(&dir, e))?;
+        // Removed when dropped, on an error below too.
+        let folder = TempFolder(dir);
+        let write = |name: &str, bytes: &[u8]| {
+            let path = folder.0.join(name);
+            std::fs::write(&path, bytes).map_err(|e| crate::fs::FileError::new(&path, e))
+        };
+        write("textured.glb", VIEWS_ASSET)?;
+        write("sky.exr", VIEWS_SKY)?;
+        write("job.toml", views_job_toml(w.width, w.spp).as_bytes())?;
+        Ok(Self {
+            job: ViewsJob::load(&folder.0.join("job.toml"))?,
+            dir: folder,
+        })
+    }
+
+    /// Run the whole job in memory on `threads` threads: its hash is of
+    /// every view's film and AOVs, in order.
+    fn render(&self, threads: usize) -> Result<Rendered> {
+        let options = ViewsOptions {
+            out_dir: self.dir.0.join("out"),
+            shard: None,
+            threads,
+            engine: Engine::Wavefront,
+            batch_size: None,
+            checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
+            pass_samples: None,
+        };
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        let mut paths = 0;
+        let start = Instant::now();
+        let report = views::stream(&self.job, &options, &|| false, &mut |_| {}, &mut |v| {
+            h.update(film_hash(v.film).as_bytes());
+            for (aov, pixels) in &v.aovs {
+                h.update(aov.name().as_bytes());
+                for c in pixels.iter().flatten() {
+                    h.update(&c.to_le_bytes());
+                }
+            }
+            paths += v.film.width as u64 * v.film.height as u64 * v.film.samples_per_pixel();
+            Ok(true)
+        })?;
+        let seconds = start.elapsed().as_secs_f64();
+        if let Some(a) = report.failed().next() {
+            return Err(Error::Settings(format!(
+                "bench: the views workload's asset failed: {}",
+                a.error.as_deref().unwrap_or("unknown")
+            )));
+        }
+        Ok(Rendered {
+            hash: format!("{:016x}", h.digest()),
+            paths,
+            rays: report.assets.iter().map(|a| a.rays).sum(),
+            triangles: report.assets.iter().map(|a| a.triangles).sum(),
+            seconds,
+        })
+    }
+}
+
+/// One timed render of a workload.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rendered {
+    /// The hash that verifies it ([`film_hash`]; for views, of every
+    /// view's film and AOVs).
+    pub hash: String,
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Rays cast (closest-hit and shadow rays).
+    pub rays: u64,
+    /// Triangles in the scene (the asset's, for views).
+    pub triangles: usize,
+    /// Seconds: the render's (for views, the whole job's: loading and
+    /// building the asset, and every view).
+    pub seconds: f64,
+}
+
+/// Times one workload on a fixed thread count.
+enum Runner<'a> {
+    Still(Box<Renderer>, &'a Scene),
+    Views(&'a ViewsBench, usize),
+}
+
+impl Runner<'_> {
+    fn render(&self) -> Result<Rendered> {
+        match self {
+            Self::Still(renderer, scene) => {
+                let (film, c, dt) = renderer.render();
+                Ok(Rendered {
+                    hash: film_hash(&film),
+                    paths: c.paths,
+                    rays: c.rays,
+                    triangles: scene.triangles.len(),
+                    seconds: dt.as_secs_f64(),
+                })
+            }
+            Self::Views(bench, threads) => bench.render(*threads),
+        }
+    }
+}
+
+impl Prepared {
+    /// What times `w` on `threads` threads (a still scene's renderer is
+    /// set up here, untimed).
+    fn runner(&self, w: &Workload, threads: usize) -> Result<Runner<'_>> {
+        Ok(match self {
+            Self::Scene(scene) => Runner::Still(
+                Box::new(Renderer::new(scene, &w.settings(scene, threads))?),
+                scene,
+            ),
+            Self::Views(bench) => Runner::Views(bench, threads),
+        })
     }
 }
 
@@ -103,6 +313,8 @@ pub struct Workload {
     pub height: u32,
     /// Samples per pixel.
     pub spp: u32,
+    /// Images a render makes (a views job's views; 1 for a scene).
+    pub images: u32,
     /// Maximum path depth.
     pub max_depth: u32,
     /// Seed.
@@ -114,6 +326,14 @@ pub struct Workload {
 }
 
 impl Workload {
+    /// Load its scene, or write its views job to a temporary folder.
+    pub fn prepare(&self) -> Result<Prepared> {
+        Ok(match self.scene.load() {
+            Some(scene) => Prepared::Scene(Box::new(scene)),
+            None => Prepared::Views(Box::new(ViewsBench::new(self)?)),
+        })
+    }
+
     /// The render settings of this workload on `threads` threads.
     pub fn settings(&self, scene: &Scene, threads: usize) -> RenderSettings {
         let mut s = RenderSettings::for_scene(scene);
@@ -131,7 +351,7 @@ impl Workload {
 
     /// Camera paths one render traces.
     pub fn paths(&self) -> u64 {
-        self.width as u64 * self.height as u64 * self.spp as u64
+        self.width as u64 * self.height as u64 * self.spp as u64 * self.images as u64
     }
 
     /// The shipped hash of this workload's image at `size`, if any.
@@ -146,11 +366,11 @@ impl Workload {
 /// The suite's workloads at `size`. The default integrator workload uses
 /// the build's defaults ([`DEFAULT_INTEGRATOR`], [`DEFAULT_SAMPLER`]).
 pub fn workloads(size: SuiteSize) -> Vec<Workload> {
-    // Samples per pixel of each workload: (report, default, sphere).
+    // Samples per pixel of each workload: (report, default, sphere, views).
     let (res, spp) = match size {
-        SuiteSize::Full => (256, [384, 288, 192]),
-        SuiteSize::Quick => (256, [64, 48, 32]),
-        SuiteSize::Tiny => (32, [4, 4, 2]),
+        SuiteSize::Full => (256, [384, 288, 192, 24]),
+        SuiteSize::Quick => (256, [64, 48, 32, 4]),
+        SuiteSize::Tiny => (32, [4, 4, 2, 1]),
     };
     let w = |name, description, scene, spp, integrator, sampler| Workload {
         name,
@@ -159,6 +379,7 @@ pub fn workloads(size: SuiteSize) -> Vec<Workload> {
         width: res,
         height: res,
         spp,
+        images: 1,
         max_depth: 3,
         seed: 1,
         integrator,
@@ -189,6 +410,18 @@ pub fn workloads(size: SuiteSize) -> Vec<Workload> {
             Integrator::Report,
             SamplerKind::Independent,
         ),
+        Workload {
+            images: 12,
+            max_depth: 5,
+            ..w(
+                "asset-views",
+                "wavetrace views: 12 views of a textured glTF asset under an HDR sky, with depth and normals (load and build included)",
+                BenchScene::AssetViews,
+                spp[3],
+                DEFAULT_INTEGRATOR,
+                DEFAULT_SAMPLER,
+            )
+        },
     ]
 }
 
@@ -207,13 +440,9 @@ pub fn film_hash(film: &Film) -> String {
     format!("{:016x}", h.digest())
 }
 
-/// Render `w` once on `threads` threads (scene already loaded); the film
-/// and its hash.
-pub fn render_workload(w: &Workload, scene: &Scene, threads: usize) -> Result<(Film, String)> {
-    let renderer = Renderer::new(scene, &w.settings(scene, threads))?;
-    let (film, _, _) = renderer.render();
-    let hash = film_hash(&film);
-    Ok((film, hash))
+/// Render `w` once on `threads` threads, [prepared](Workload::prepare).
+pub fn render_workload(w: &Workload, prepared: &Prepared, threads: usize) -> Result<Rendered> {
+    prepared.runner(w, threads)?.render()
 }
 
 /// The default thread counts on a machine of `cores` cores: 1, the powers
@@ -478,6 +707,9 @@ pub struct WorkloadResult {
     pub height: u32,
     /// Samples per pixel.
     pub spp: u32,
+    /// Images a render makes (a views job's views; 1 for a scene).
+    #[serde(default = "one")]
+    pub images: u32,
     /// Maximum path depth.
     pub max_depth: u32,
     /// Seed.
@@ -496,6 +728,11 @@ pub struct WorkloadResult {
     pub verified: bool,
     /// Timings by thread count.
     pub runs: Vec<ThreadResult>,
+}
+
+/// 1: what reports of suite 1, before views, held.
+fn one() -> u32 {
+    1
 }
 
 /// The overall scores: geometric means over the workloads.
@@ -606,14 +843,15 @@ pub fn run_suite(
     let mut results = Vec::new();
     for w in &list {
         observer.progress(done, &format!("{}: loading the scene", w.name));
-        let scene = w.scene.load();
+        let prepared = w.prepare()?;
         let expected = w.expected_hash(size);
         let mut hashes: Vec<String> = Vec::new();
         let mut runs = Vec::new();
         let mut t1: Option<f64> = None;
+        let mut triangles = 0;
         for &t in &threads {
             observer.progress(done, &format!("{}: {t} thread(s), setting up", w.name));
-            let renderer = Renderer::new(&scene, &w.settings(&scene, t))?;
+            let runner = prepared.runner(w, t)?;
             let mut seconds = Vec::new();
             let mut counters = None;
             let cpu_before = CpuTimes::now();
@@ -622,13 +860,13 @@ pub fn run_suite(
                     done,
                     &format!("{}: {t} thread(s), run {}/{repeats}", w.name, r + 1),
                 );
-                let (film, c, dt) = renderer.render();
-                let hash = film_hash(&film);
-                if !hashes.contains(&hash) {
-                    hashes.push(hash);
+                let rendered = runner.render()?;
+                if !hashes.contains(&rendered.hash) {
+                    hashes.push(rendered.hash.clone());
                 }
-                seconds.push(dt.as_secs_f64());
-                counters = Some(c);
+                seconds.push(rendered.seconds);
+                triangles = rendered.triangles;
+                counters = Some(rendered);
                 done += units(w, t);
                 observer.progress(done, w.name);
             }
@@ -664,11 +902,12 @@ pub fn run_suite(
             width: w.width,
             height: w.height,
             spp: w.spp,
+            images: w.images,
             max_depth: w.max_depth,
             seed: w.seed,
             integrator: w.integrator.name().into(),
             sampler: w.sampler.name().into(),
-            triangles: scene.triangles.len(),
+            triangles,
             expected_hash: expected.map(String::from),
             hashes,
             verified,

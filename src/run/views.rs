@@ -116,6 +116,8 @@ pub struct AssetReport {
     pub render_seconds: f64,
     /// Seconds on the rest of its views (AOVs, denoise, writing, hashing).
     pub write_seconds: f64,
+    /// Rays cast for its views by this run (closest-hit and shadow rays).
+    pub rays: u64,
     /// Why it failed, if it did (its views are then not rendered).
     pub error: Option<String>,
 }
@@ -391,6 +393,18 @@ fn stops_the_job(e: &Error) -> bool {
     matches!(e, Error::Io(_) | Error::Denoise(_))
 }
 
+/// What rendering one view took.
+struct ViewDone {
+    /// Seconds tracing paths.
+    render_seconds: f64,
+    /// Seconds on the rest (AOVs, denoise, writing, hashing).
+    write_seconds: f64,
+    /// Samples per pixel it went on from (0: rendered from the start).
+    resumed: u64,
+    /// Rays cast.
+    rays: u64,
+}
+
 /// One asset's share of a job.
 struct AssetWork<'a> {
     job: &'a ViewsJob,
@@ -549,21 +563,20 @@ impl AssetWork<'_> {
                 transparent: scene.has_transparent_background(),
                 objects: &objects,
             };
-            let Some((render_seconds, write_seconds, resumed)) =
-                self.view(&mut renderer, &view, denoiser, sink, stop)?
-            else {
+            let Some(done) = self.view(&mut renderer, &view, denoiser, sink, stop)? else {
                 return Ok(false);
             };
             report.views_rendered += 1;
-            report.views_resumed += u32::from(resumed > 0);
-            report.render_seconds += render_seconds;
-            report.write_seconds += write_seconds;
+            report.views_resumed += u32::from(done.resumed > 0);
+            report.render_seconds += done.render_seconds;
+            report.write_seconds += done.write_seconds;
+            report.rays += done.rays;
             observe(ViewsEvent::View {
                 asset: &report.name,
                 view: i,
                 skipped: false,
-                render_seconds,
-                write_seconds,
+                render_seconds: done.render_seconds,
+                write_seconds: done.write_seconds,
             });
         }
         Ok(true)
@@ -640,8 +653,7 @@ impl AssetWork<'_> {
 
     /// Render one view and write it (or hand it to the sink's function);
     /// `None` when `stop` ended it (nothing written) or the function said
-    /// to end. Returns the seconds tracing paths and the seconds on the
-    /// rest.
+    /// to end.
     fn view(
         &self,
         renderer: &mut Renderer,
@@ -649,15 +661,21 @@ impl AssetWork<'_> {
         denoiser: &mut Option<Denoiser>,
         sink: &mut Sink,
         stop: &(dyn Fn() -> bool + Sync),
-    ) -> Result<Option<(f64, f64, u64)>> {
+    ) -> Result<Option<ViewDone>> {
         let (w, h) = (self.job.render.width, self.job.render.height);
         renderer.set_view(&view.n.camera(view.pose), view.seed);
         let t = Instant::now();
         let files = matches!(sink, Sink::Files);
-        let Some((film, resumed)) = self.render(renderer, view, files, stop)? else {
+        let Some((film, resumed, rays)) = self.render(renderer, view, files, stop)? else {
             return Ok(None);
         };
         let render_seconds = t.elapsed().as_secs_f64();
+        let done = |write_seconds| ViewDone {
+            render_seconds,
+            write_seconds,
+            resumed,
+            rays,
+        };
         let t = Instant::now();
         let aovs = film.aov_images();
         let layer = |a: Aov| aovs.iter().find(|(x, _)| *x == a).map(|(_, p)| &p[..]);
@@ -684,7 +702,7 @@ impl AssetWork<'_> {
                 objects: view.objects,
             };
             let write_seconds = t.elapsed().as_secs_f64();
-            return Ok(each(streamed)?.then_some((render_seconds, write_seconds, 0)));
+            return Ok(each(streamed)?.then(|| done(write_seconds)));
         }
         let files = self.files(view.index);
         let mut names = files.iter();
@@ -733,7 +751,7 @@ impl AssetWork<'_> {
         self.write_record(view, &files)?;
         // The view is finished: its checkpoint is of no more use.
         let _ = std::fs::remove_file(self.checkpoint_path(view.index));
-        Ok(Some((render_seconds, t.elapsed().as_secs_f64(), resumed)))
+        Ok(Some(done(t.elapsed().as_secs_f64())))
     }
 
     /// View `i`'s checkpoint: its film so far, `manifest/NNNN.wtacc`.
@@ -747,15 +765,15 @@ impl AssetWork<'_> {
     /// AOVs); the checkpoint is saved every
     /// [`checkpoint_every`](ViewsOptions::checkpoint_every) and when
     /// `stop` ends the view (`None`). Without `checkpoints` ([`stream`])
-    /// none is read or written. Returns the film and the samples per pixel
-    /// it resumed with.
+    /// none is read or written. Returns the film, the samples per pixel
+    /// it resumed with and the rays this run cast for it.
     fn render(
         &self,
         renderer: &Renderer,
         view: &View,
         checkpoints: bool,
         stop: &(dyn Fn() -> bool + Sync),
-    ) -> Result<Option<(crate::film::Film, u64)>> {
+    ) -> Result<Option<(crate::film::Film, u64, u64)>> {
         let spp = self.job.render.spp;
         let path = self.checkpoint_path(view.index);
         let mut h = xxhash_rust::xxh3::Xxh3::new();
@@ -785,7 +803,7 @@ impl AssetWork<'_> {
             }
             Ok(())
         };
-        let mut per_sample: Option<f64> = None;
+        let (mut per_sample, mut rays) = (None::<f64>, 0);
         while let Some(gap) = crate::run::session::first_gap(&film.ranges, &target) {
             // Passes of about PASS_SECONDS (one sample first, to measure).
             let n = match (self.options.pass_samples, per_sample) {
@@ -795,14 +813,15 @@ impl AssetWork<'_> {
             };
             let n = n.min(gap.end - gap.start);
             let t = Instant::now();
-            if stop()
-                || renderer
-                    .render_samples_or_stop(gap.start..gap.start + n, &mut film, stop)
-                    .is_none()
-            {
+            let traced = match stop() {
+                true => None,
+                false => renderer.render_samples_or_stop(gap.start..gap.start + n, &mut film, stop),
+            };
+            let Some(counters) = traced else {
                 save(&film, &mut saved)?;
                 return Ok(None);
-            }
+            };
+            rays += counters.rays;
             per_sample = Some(t.elapsed().as_secs_f64() / f64::from(n));
             let more = crate::run::session::first_gap(&film.ranges, &target).is_some();
             if more && since.elapsed() >= self.options.checkpoint_every {
@@ -810,7 +829,7 @@ impl AssetWork<'_> {
                 since = Instant::now();
             }
         }
-        Ok(Some((film, resumed)))
+        Ok(Some((film, resumed, rays)))
     }
 
     /// AOV `aov` of a view as the views give it: depths in the job's world
