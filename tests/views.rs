@@ -806,4 +806,53 @@ fn a_job_sun_lights_the_views_as_the_closed_form_says() {
     let file = dir.join("job.toml").display().to_string();
     let e = ViewsJob::parse(&job(point), &file).unwrap_err().to_string();
     assert!(e.contains("light[0].type") && e.contains("suns"), "{e}");
+
+    // The flags' `--sun X,Y,Z,IRRADIANCE` is that `[[light]]`: the same
+    // bytes as the job file that writes it.
+    let flagged = "[assets]\nfiles = [\"floor.toml\"]\n\n[cameras]\nkind = \"explicit\"\nfile = \"cams.json\"\n\n[[environment]]\ncolor = [0.0, 0.0, 0.0]\n\n[[light]]\ntype = \"sun\"\ndirection = [0.0, -1.0, -1.0]\nirradiance = 3.0\n\n[render]\nwidth = 16\nheight = 16\nspp = 8\nseed = 0\n";
+    std::fs::write(dir.join("flagged.toml"), flagged).unwrap();
+    let o = run(dir.path(), &["views", "flagged.toml", "--out-dir", "a"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let flags = [
+        "views",
+        "--asset",
+        "floor.toml",
+        "--cameras",
+        "cams.json",
+        "--env",
+        "0,0,0",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "8",
+        "--seed",
+        "0",
+        "--out-dir",
+        "b",
+        "--sun",
+    ];
+    let o = run(dir.path(), &[&flags[..], &["0,-1,-1,3"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = |d: &str| std::fs::read(dir.join(d).join("floor/0.png")).unwrap();
+    assert_eq!(png("a"), png("b"), "--sun renders as the job's [[light]]");
+    let o = run(dir.path(), &[&flags[..], &["0,-1,-1,1"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(png("a"), png("b"), "the irradiance is used");
+    for (bad, says) in [
+        ("0,0,0,3", "direction must not be zero"),
+        ("0,-1,0", "X,Y,Z,IRRADIANCE"),
+        (
+            "0,-1,0,-3",
+            "irradiance must be a finite non-negative number",
+        ),
+    ] {
+        let o = run(dir.path(), &[&flags[..], &[bad]].concat());
+        let e = stderr(&o);
+        assert!(
+            !o.status.success() && e.contains("--sun") && e.contains(says),
+            "{e}"
+        );
+    }
 }

@@ -6,6 +6,7 @@ use crate::run::session::Interrupt;
 use crate::run::shard::ShardSpec;
 use crate::run::views::{DEFAULT_CHECKPOINT_EVERY, ViewsEvent, ViewsOptions, ViewsReport};
 use crate::scene::environment::{EnvSource, Environment};
+use crate::scene::punctual::sun_from_words;
 use crate::scene::views_job::{
     CameraSet, DEFAULT_SIZE, DEFAULT_SPP, DEFAULT_VFOV_DEG, ViewsJob, ViewsOutputs, ViewsRender,
 };
@@ -74,6 +75,14 @@ pub struct ViewsArgs {
     /// Turn the environment by a seeded random angle per view.
     #[arg(long, help_heading = "Job from flags")]
     pub random_rotation: bool,
+    /// A sun: the way its light goes and its irradiance in W/m² (docs/lights.md); repeatable.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,IRRADIANCE",
+        allow_hyphen_values = true,
+        help_heading = "Job from flags"
+    )]
+    pub sun: Vec<String>,
     /// Image width [default: 512].
     #[arg(long, value_name = "W", help_heading = "Job from flags")]
     pub width: Option<u32>,
@@ -132,6 +141,7 @@ impl ViewsArgs {
             (self.fov.is_some(), "--fov"),
             (!self.env.is_empty(), "--env"),
             (self.random_rotation, "--random-rotation"),
+            (!self.sun.is_empty(), "--sun"),
             (self.width.is_some(), "--width"),
             (self.height.is_some(), "--height"),
             (self.spp.is_some(), "--spp"),
@@ -221,6 +231,9 @@ impl ViewsArgs {
                 .map_err(|m| settings(format!("--env {e}: {m}")))?;
             environments.push(env);
         }
+        let lights = (self.sun.iter())
+            .map(|w| sun_from_words(w).map_err(|m| settings(format!("--sun {m}"))))
+            .collect::<Result<Vec<_>>>()?;
         let mut assets = Vec::new();
         for a in &self.asset {
             match crate::scene::views_job::expand_glob(a) {
@@ -241,7 +254,7 @@ impl ViewsArgs {
             cameras,
             target: None,
             environments,
-            lights: Vec::new(),
+            lights,
             random_rotation: self.random_rotation,
             render: ViewsRender {
                 width: positive(self.width, "--width")?.unwrap_or(DEFAULT_SIZE),

@@ -192,6 +192,26 @@ pub struct LightFile {
     outer_angle: Option<Spanned<f32>>,
 }
 
+/// A sun written on a command line as `X,Y,Z,IRRADIANCE`: the way its
+/// light goes and its irradiance (W/m²), with the default angular
+/// diameter; checked as a `[[light]]` table of type `"sun"` is.
+pub fn sun_from_words(text: &str) -> Result<PunctualLight, String> {
+    let numbers: Option<Vec<f32>> = (text.split(','))
+        .map(|w| w.trim().parse::<f32>().ok().filter(|x| x.is_finite()))
+        .collect();
+    let Some(&[x, y, z, e]) = numbers.as_deref() else {
+        return Err(format!(
+            "{text}: a sun is X,Y,Z,IRRADIANCE: four finite numbers (the way its light goes, W/m²)"
+        ));
+    };
+    let table = format!("type = \"sun\"\ndirection = [{x:?}, {y:?}, {z:?}]\nirradiance = {e:?}\n");
+    let raw: LightFile = toml::from_str(&table).map_err(|e| format!("{text}: {e}"))?;
+    from_file(0, &raw).map_err(|(_, field, m)| {
+        let field = field.trim_start_matches("light[0].");
+        format!("{text}: its {field} {m}")
+    })
+}
+
 /// Where a problem with a `[[light]]` is: the span of the scene file's
 /// text, the field (`light[K].FIELD`) and the message.
 pub type TableError = (std::ops::Range<usize>, String, String);
