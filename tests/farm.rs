@@ -516,3 +516,125 @@ fn merge_takes_spp_for_parts_that_do_not_record_it() {
     assert_eq!(merged, renderer.render().0);
     assert_eq!(meta.spp, Some(8));
 }
+
+/// The container command of a Kubernetes Job manifest (`args: - >-`, a
+/// folded scalar: its lines joined by spaces), with Kubernetes' own
+/// expansion of `$$` to `$`, and the Job's `completions`.
+fn k8s_job_command(manifest: &str) -> (String, u32) {
+    let lines: Vec<&str> = manifest.lines().collect();
+    let indent = |l: &str| l.len() - l.trim_start().len();
+    let start = (lines.iter())
+        .position(|l| l.trim() == "- >-")
+        .expect("a folded args scalar");
+    let command: Vec<&str> = lines[start + 1..]
+        .iter()
+        .take_while(|l| indent(l) > indent(lines[start]))
+        .map(|l| l.trim())
+        .collect();
+    let completions = (lines.iter())
+        .find_map(|l| l.trim().strip_prefix("completions:"))
+        .and_then(|v| v.split('#').next()?.trim().parse().ok())
+        .expect("completions: N");
+    (command.join(" ").replace("$$", "$"), completions)
+}
+
+/// farm/k8s/views.yaml's pods, run here as its Indexed Job would run them
+/// (pod i with JOB_COMPLETION_INDEX=i, the shared volume a folder, a small
+/// job file on it): together they write exactly the files of one
+/// uninterrupted run, and a retried pod renders nothing again.
+#[test]
+fn the_kubernetes_views_example_runs_as_an_indexed_job() {
+    let manifest =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("farm/k8s/views.yaml"))
+            .unwrap();
+    let (command, completions) = k8s_job_command(&manifest);
+    assert!(
+        command.contains(&format!("--shard-count {completions}")),
+        "the shard count is the Job's completions: {command}"
+    );
+    assert!(manifest.contains("mountPath: /data"), "{manifest}");
+    let dir = TempDir::new("k8s-views");
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let glb = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb");
+    for name in ["a.glb", "b.glb"] {
+        std::fs::copy(&glb, data.join(name)).unwrap();
+    }
+    std::fs::write(
+        data.join("job.toml"),
+        "[assets]\nfiles = [\"a.glb\", \"b.glb\"]\nnormalize = true\n\n[cameras]\nkind = \"orbit\"\nviews = 5\n\n[render]\nwidth = 12\nheight = 12\nspp = 2\n\n[outputs]\ncolor = [\"png\"]\naov = [\"depth\"]\n",
+    )
+    .unwrap();
+    // The image's PATH has wavetrace; here it is the built binary's folder.
+    let bin = Path::new(env!("CARGO_BIN_EXE_wavetrace")).parent().unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let command = command.replace("/data", p(&data));
+    let pod = |i: u32| {
+        let o = std::process::Command::new("sh")
+            .args(["-c", &command])
+            .env("JOB_COMPLETION_INDEX", i.to_string())
+            .env("PATH", &path)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "pod {i}: {}", common::text(&o));
+    };
+    for i in 0..completions {
+        pod(i);
+    }
+    run_ok(
+        &dir,
+        &["views", p(&data.join("job.toml")), "--out-dir", "single"],
+    );
+    /// Every file under `root` but the per-pod stats, by path.
+    fn files(root: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+        let mut out = std::collections::BTreeMap::new();
+        let mut stack = vec![root.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let path = e.unwrap().path();
+                if path.is_dir() {
+                    stack.push(path);
+                } else if !path
+                    .file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("stats-")
+                {
+                    let bytes = std::fs::read(&path).unwrap();
+                    out.insert(path.strip_prefix(root).unwrap().to_path_buf(), bytes);
+                }
+            }
+        }
+        out
+    }
+    let (pods, single) = (files(&data.join("out")), files(&dir.join("single")));
+    assert_eq!(
+        pods.keys().collect::<Vec<_>>(),
+        single.keys().collect::<Vec<_>>()
+    );
+    assert!(pods == single, "the pods' files are the single run's bytes");
+    assert!(pods.len() >= 2 * (2 * 5 + 2), "{} files", pods.len());
+    // Every pod wrote its stats; a retried pod skips the views it finished.
+    for i in 0..completions {
+        assert!(
+            data.join(format!("out/stats-{i}.json")).is_file(),
+            "pod {i}"
+        );
+    }
+    // (10 pairs in 16 shards: the last pod has one view; the first none.)
+    let last = completions - 1;
+    pod(last);
+    let stats = std::fs::read_to_string(data.join(format!("out/stats-{last}.json"))).unwrap();
+    let stats: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    assert_eq!(
+        (stats["rendered"].as_u64(), stats["skipped"].as_u64()),
+        (Some(0), Some(1)),
+        "{stats}"
+    );
+    assert!(files(&data.join("out")) == pods);
+}

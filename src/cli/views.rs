@@ -298,6 +298,10 @@ pub fn run(args: ViewsArgs) -> Result<ExitCode> {
         )));
     }
     if let Some(stats) = &args.stats {
+        // The stats may go into the output directory, which the run
+        // would create: create it first (a farm's first shard finds none).
+        std::fs::create_dir_all(&args.out_dir)
+            .map_err(|e| crate::fs::FileError::new(&args.out_dir, e))?;
         crate::fs::check_writable(stats)?;
     }
     let options = ViewsOptions {
