@@ -461,6 +461,16 @@ impl Renderer {
         }
     }
 
+    /// What [`relight`](Self::relight) gives for the scene with only its
+    /// environment's rotation changed, to `rotation_deg`, without building
+    /// the environment's sampling tables again.
+    pub fn turn_environment(&mut self, rotation_deg: f32) {
+        match &mut self.engine {
+            EngineState::Reference(tracer) => tracer.turn_environment(rotation_deg),
+            EngineState::Wavefront(engine) => engine.turn_environment(rotation_deg),
+        }
+    }
+
     /// The bounding volume hierarchy the engine traces against.
     pub fn bvh(&self) -> &Bvh {
         &self.bvh

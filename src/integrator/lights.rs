@@ -558,6 +558,15 @@ impl Lights {
         lights
     }
 
+    /// Turn the environment, if there is one, to `rotation_deg`: the
+    /// lights of the scene with its environment so turned (its power, and
+    /// so every light's probability, does not depend on the rotation).
+    pub fn turn_environment(&mut self, rotation_deg: f32) {
+        if let Some(env) = &mut self.environment {
+            env.turn(rotation_deg);
+        }
+    }
+
     /// The scene's environment, if it has one.
     #[inline]
     pub fn environment(&self) -> Option<&EnvLight> {

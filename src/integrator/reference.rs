@@ -98,6 +98,11 @@ impl ReferenceTracer {
         self.lights = Lights::new(scene);
     }
 
+    /// Turn the environment to `rotation_deg` ([`Lights::turn_environment`]).
+    pub fn turn_environment(&mut self, rotation_deg: f32) {
+        self.lights.turn_environment(rotation_deg);
+    }
+
     fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {
         Self {
             accel,

@@ -548,11 +548,22 @@ impl AssetWork<'_> {
             }
             if !job.environments.is_empty() {
                 let pick = self.lighting(hash, i);
-                if lighting != Some(pick) {
-                    scene.environment = Some(self.environment(pick));
-                    renderer.relight(&scene);
-                    lighting = Some(pick);
+                match lighting {
+                    Some(l) if l == pick => {}
+                    // Only the rotation changes: the environment's tables
+                    // stay (the same bits as building them again).
+                    Some((k, _)) if k == pick.0 => {
+                        if let Some(env) = &mut scene.environment {
+                            env.rotation_deg = pick.1;
+                        }
+                        renderer.turn_environment(pick.1);
+                    }
+                    _ => {
+                        scene.environment = Some(self.environment(pick));
+                        renderer.relight(&scene);
+                    }
                 }
+                lighting = Some(pick);
             }
             let view = View {
                 index: i,

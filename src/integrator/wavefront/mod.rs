@@ -109,6 +109,11 @@ impl WavefrontEngine {
         self.lights = Lights::new(scene);
     }
 
+    /// Turn the environment to `rotation_deg` ([`Lights::turn_environment`]).
+    pub fn turn_environment(&mut self, rotation_deg: f32) {
+        self.lights.turn_environment(rotation_deg);
+    }
+
     /// Render a tile, at most `frame.batch_size` paths at a time: whole
     /// pixels per batch when they fit, else the pixel's samples split.
     pub fn render_tile<S: Sampler>(
