@@ -84,6 +84,9 @@ fn bench_json_and_compare() {
         assert!(out.contains(w), "{out}");
     }
     assert!(out.contains("single thread"), "{out}");
+    // Where the time goes: each workload's stage shares add up to 1.
+    assert!(out.contains("where the time goes"), "{out}");
+    assert!(out.contains("asset-views      generate"), "{out}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("a.json")).unwrap()).unwrap();
     assert_eq!(json["verified"], true);
@@ -96,6 +99,11 @@ fn bench_json_and_compare() {
     assert_eq!(runs.len(), 2);
     assert_eq!(runs[0]["seconds"].as_array().unwrap().len(), 2);
     assert!(runs[1]["efficiency"].as_f64().unwrap() > 0.0);
+    for w in json["workloads"].as_array().unwrap() {
+        let shares = w["runs"][1]["stages"].as_object().unwrap();
+        let sum: f64 = shares.values().map(|x| x.as_f64().unwrap()).sum();
+        assert!(shares.len() == 8 && (sum - 1.0).abs() < 1e-9, "{w}");
+    }
     assert!(json["machine"]["cores"].as_u64().unwrap() >= 1);
     assert!(!json["build"]["version"].as_str().unwrap().is_empty());
     assert!(json["scores"]["single_thread_mpaths"].as_f64().unwrap() > 0.0);

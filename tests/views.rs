@@ -523,6 +523,14 @@ fn the_command_renders_shards_skips_broken_assets_and_reports() {
     let stats = json(&dir.join("s.json"));
     assert_eq!(stats["rendered"], 6);
     assert_eq!(stats["failed"].as_array().unwrap().len(), 2);
+    // Where the asset's time went: rays, and every wavefront stage.
+    let assets = stats["assets"].as_array().unwrap();
+    let asset = assets.iter().find(|a| a["error"].is_null()).unwrap();
+    let paths = asset["views_rendered"].as_u64().unwrap() * 16 * 12 * 2;
+    assert!(asset["rays"].as_u64().unwrap() >= paths, "{asset}");
+    let stages = asset["stages"].as_object().unwrap();
+    assert_eq!(stages.len(), 8, "{asset}");
+    assert!(stages["intersect"].as_f64().unwrap() > 0.0, "{asset}");
     // Run again: every view is skipped. --shard auto under a Slurm array.
     let out = common::run_env(
         &dir,

@@ -127,6 +127,28 @@ fn gib(bytes: u64) -> String {
     format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
 }
 
+/// Where each workload's rendering time went at its largest thread
+/// count: the wavefront stages' shares, in the engine's order.
+fn stages_table(r: &BenchReport) -> String {
+    let mut s = String::new();
+    for w in &r.workloads {
+        let Some(t) = w.runs.last().filter(|t| !t.stages.is_empty()) else {
+            continue;
+        };
+        if s.is_empty() {
+            s += "\nwhere the time goes (wavefront stages, share of their time, at the largest thread count):\n";
+        }
+        let shares: Vec<String> = (crate::integrator::Stage::ALL.iter())
+            .filter_map(|stage| {
+                let x = t.stages.get(stage.name())?;
+                Some(format!("{} {:.0}%", stage.name(), x * 100.0))
+            })
+            .collect();
+        s += &format!("{:<16} {}\n", w.name, shares.join("  "));
+    }
+    s
+}
+
 /// The report as the table printed on stdout.
 pub fn table(r: &BenchReport) -> String {
     let m = &r.machine;
@@ -207,6 +229,7 @@ pub fn table(r: &BenchReport) -> String {
             );
         }
     }
+    s += &stages_table(r);
     let sc = &r.scores;
     // BUSY beside a score when a run it is made of was timed while other
     // processes used the CPU.

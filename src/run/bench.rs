@@ -11,6 +11,7 @@
 
 use crate::error::{Error, Result};
 use crate::film::Film;
+use crate::integrator::{Stage, StageSeconds};
 use crate::render::{DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, Engine, RenderSettings, Renderer};
 use crate::run::views::{self, DEFAULT_CHECKPOINT_EVERY, ViewsOptions};
 use crate::scene::views_job::ViewsJob;
@@ -238,6 +239,13 @@ impl ViewsBench {
             paths,
             rays: report.assets.iter().map(|a| a.rays).sum(),
             triangles: report.assets.iter().map(|a| a.triangles).sum(),
+            stages: report
+                .assets
+                .iter()
+                .fold(StageSeconds::default(), |mut s, a| {
+                    s += a.stages;
+                    s
+                }),
             seconds,
         })
     }
@@ -255,6 +263,8 @@ pub struct Rendered {
     pub rays: u64,
     /// Triangles in the scene (the asset's, for views).
     pub triangles: usize,
+    /// Seconds in each wavefront stage, summed over threads.
+    pub stages: StageSeconds,
     /// Seconds: the render's (for views, the whole job's: loading and
     /// building the asset, and every view).
     pub seconds: f64,
@@ -276,6 +286,7 @@ impl Runner<'_> {
                     paths: c.paths,
                     rays: c.rays,
                     triangles: scene.triangles.len(),
+                    stages: c.stages,
                     seconds: dt.as_secs_f64(),
                 })
             }
@@ -618,6 +629,10 @@ pub struct ThreadResult {
     /// were taken on a busy machine.
     #[serde(default)]
     pub others_cpu: Option<f64>,
+    /// Where the rendering time went: each wavefront stage's share of
+    /// their time, over the repeats (empty for a report from before).
+    #[serde(default)]
+    pub stages: std::collections::BTreeMap<String, f64>,
 }
 
 impl ThreadResult {
@@ -854,6 +869,7 @@ pub fn run_suite(
             let runner = prepared.runner(w, t)?;
             let mut seconds = Vec::new();
             let mut counters = None;
+            let mut stages = StageSeconds::default();
             let cpu_before = CpuTimes::now();
             for r in 0..repeats {
                 observer.progress(
@@ -866,6 +882,7 @@ pub fn run_suite(
                 }
                 seconds.push(rendered.seconds);
                 triangles = rendered.triangles;
+                stages += rendered.stages;
                 counters = Some(rendered);
                 done += units(w, t);
                 observer.progress(done, w.name);
@@ -893,6 +910,7 @@ pub fn run_suite(
                 speedup,
                 efficiency: speedup.map(|s| s / t as f64),
                 others_cpu,
+                stages: stage_shares(&stages),
             });
         }
         let verified = expected.is_some_and(|e| hashes.len() == 1 && hashes[0] == e);
@@ -927,6 +945,18 @@ pub fn run_suite(
         scores,
         wall_seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Each stage's share of the stages' time, by name (empty when nothing
+/// was timed).
+pub fn stage_shares(stages: &StageSeconds) -> std::collections::BTreeMap<String, f64> {
+    let total: f64 = Stage::ALL.iter().map(|s| stages.of(*s)).sum();
+    if total <= 0.0 {
+        return Default::default();
+    }
+    (Stage::ALL.iter())
+        .map(|s| (s.name().to_string(), stages.of(*s) / total))
+        .collect()
 }
 
 /// The overall scores of `results` (every workload run at the same thread

@@ -27,6 +27,7 @@ use crate::denoise::{Aux, Denoiser};
 use crate::error::{Error, Result};
 use crate::film::{AccMeta, Film};
 use crate::fs::write_atomic;
+use crate::integrator::StageSeconds;
 use crate::output::ExrLayer;
 use crate::output::view::ViewTransform;
 use crate::render::{Engine, RenderSettings, Renderer};
@@ -118,8 +119,20 @@ pub struct AssetReport {
     pub write_seconds: f64,
     /// Rays cast for its views by this run (closest-hit and shadow rays).
     pub rays: u64,
+    /// Seconds in each wavefront stage, its views, summed over threads
+    /// (zero for the reference engine).
+    #[serde(serialize_with = "stage_map")]
+    pub stages: StageSeconds,
     /// Why it failed, if it did (its views are then not rendered).
     pub error: Option<String>,
+}
+
+/// [`StageSeconds`] as a map from each stage's name.
+fn stage_map<S: serde::Serializer>(
+    stages: &StageSeconds,
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    serde::Serialize::serialize(&stages.by_name(), s)
 }
 
 /// What a run did.
@@ -403,6 +416,8 @@ struct ViewDone {
     resumed: u64,
     /// Rays cast.
     rays: u64,
+    /// Seconds in each wavefront stage.
+    stages: StageSeconds,
 }
 
 /// One asset's share of a job.
@@ -582,6 +597,7 @@ impl AssetWork<'_> {
             report.render_seconds += done.render_seconds;
             report.write_seconds += done.write_seconds;
             report.rays += done.rays;
+            report.stages += done.stages;
             observe(ViewsEvent::View {
                 asset: &report.name,
                 view: i,
@@ -677,7 +693,7 @@ impl AssetWork<'_> {
         renderer.set_view(&view.n.camera(view.pose), view.seed);
         let t = Instant::now();
         let files = matches!(sink, Sink::Files);
-        let Some((film, resumed, rays)) = self.render(renderer, view, files, stop)? else {
+        let Some((film, resumed, counters)) = self.render(renderer, view, files, stop)? else {
             return Ok(None);
         };
         let render_seconds = t.elapsed().as_secs_f64();
@@ -685,7 +701,8 @@ impl AssetWork<'_> {
             render_seconds,
             write_seconds,
             resumed,
-            rays,
+            rays: counters.rays,
+            stages: counters.stages,
         };
         let t = Instant::now();
         let aovs = film.aov_images();
@@ -777,14 +794,14 @@ impl AssetWork<'_> {
     /// [`checkpoint_every`](ViewsOptions::checkpoint_every) and when
     /// `stop` ends the view (`None`). Without `checkpoints` ([`stream`])
     /// none is read or written. Returns the film, the samples per pixel
-    /// it resumed with and the rays this run cast for it.
+    /// it resumed with and what tracing it took this run (rays, stages).
     fn render(
         &self,
         renderer: &Renderer,
         view: &View,
         checkpoints: bool,
         stop: &(dyn Fn() -> bool + Sync),
-    ) -> Result<Option<(crate::film::Film, u64, u64)>> {
+    ) -> Result<Option<(crate::film::Film, u64, crate::integrator::Counters)>> {
         let spp = self.job.render.spp;
         let path = self.checkpoint_path(view.index);
         let mut h = xxhash_rust::xxh3::Xxh3::new();
@@ -814,7 +831,7 @@ impl AssetWork<'_> {
             }
             Ok(())
         };
-        let (mut per_sample, mut rays) = (None::<f64>, 0);
+        let (mut per_sample, mut traced) = (None::<f64>, crate::integrator::Counters::default());
         while let Some(gap) = crate::run::session::first_gap(&film.ranges, &target) {
             // Passes of about PASS_SECONDS (one sample first, to measure).
             let n = match (self.options.pass_samples, per_sample) {
@@ -824,15 +841,15 @@ impl AssetWork<'_> {
             };
             let n = n.min(gap.end - gap.start);
             let t = Instant::now();
-            let traced = match stop() {
+            let pass = match stop() {
                 true => None,
                 false => renderer.render_samples_or_stop(gap.start..gap.start + n, &mut film, stop),
             };
-            let Some(counters) = traced else {
+            let Some(counters) = pass else {
                 save(&film, &mut saved)?;
                 return Ok(None);
             };
-            rays += counters.rays;
+            traced += counters;
             per_sample = Some(t.elapsed().as_secs_f64() / f64::from(n));
             let more = crate::run::session::first_gap(&film.ranges, &target).is_some();
             if more && since.elapsed() >= self.options.checkpoint_every {
@@ -840,7 +857,7 @@ impl AssetWork<'_> {
                 since = Instant::now();
             }
         }
-        Ok(Some((film, resumed, rays)))
+        Ok(Some((film, resumed, traced)))
     }
 
     /// AOV `aov` of a view as the views give it: depths in the job's world
