@@ -88,11 +88,11 @@ impl Setup {
 }
 
 fn params(base: [f32; 3], metallic: f32, roughness: f32) -> Params<f32> {
-    Params {
-        base: V3::new(base[0], base[1], base[2]),
+    Params::new(
+        V3::new(base[0], base[1], base[2]),
         metallic,
-        alpha: roughness * roughness,
-    }
+        roughness * roughness,
+    )
 }
 
 const BASE: [f32; 3] = [0.8, 0.5, 0.2];
@@ -369,9 +369,17 @@ fn simd_equals_scalar_bitwise() {
             let wo = v32(rng.unit());
             let wi = v32(rng.unit());
             let p = Params {
-                base: V3::new(rng.f(), rng.f(), rng.f()),
-                metallic: rng.f(),
-                alpha: rng.f() * rng.f(),
+                // KHR_materials_specular's F0 and F90 in half the lanes.
+                f0: match rng.f() < 0.5 {
+                    true => V3::new(rng.f(), rng.f(), rng.f()).scale(0.5),
+                    false => V3::new(0.04, 0.04, 0.04),
+                },
+                f90: rng.f().max(0.5),
+                ..Params::new(
+                    V3::new(rng.f(), rng.f(), rng.f()),
+                    rng.f(),
+                    rng.f() * rng.f(),
+                )
             };
             (n, wo, wi, p, rng.u2())
         });
@@ -391,6 +399,8 @@ fn simd_equals_scalar_bitwise() {
             base: v8(&|l| lanes[l].3.base),
             metallic: s8(&|l| lanes[l].3.metallic),
             alpha: s8(&|l| lanes[l].3.alpha),
+            f0: v8(&|l| lanes[l].3.f0),
+            f90: s8(&|l| lanes[l].3.f90),
         };
         let u = [s8(&|l| lanes[l].4[0]), s8(&|l| lanes[l].4[1])];
         let f8 = mr::eval(n, wo, wi, &p);
@@ -412,4 +422,226 @@ fn simd_equals_scalar_bitwise() {
             assert_eq!(s.cos.to_bits(), smp8.cos.to_array()[l].to_bits());
         }
     }
+}
+
+// ---------------------------------------------------------------------------
+// KHR_materials_specular
+
+/// A metallic-roughness material with `KHR_materials_ior` and
+/// `KHR_materials_specular`, as the asset loader makes it.
+fn specular_material(
+    base: [f32; 3],
+    (metallic, roughness): (f32, f32),
+    ior: f32,
+    (specular, colour): (f32, [f32; 3]),
+) -> wavetrace::scene::Material {
+    use wavetrace::scene::{Material, Model};
+    let mut m = Material::diffuse("specular", glam::Vec3::from(base), glam::Vec3::ZERO);
+    m.model = Model::MetallicRoughness;
+    (m.metallic, m.roughness, m.ior) = (metallic, roughness, ior);
+    (m.specular, m.specular_colour) = (specular, glam::Vec3::from(colour));
+    m
+}
+
+/// `KHR_materials_specular`'s BRDF, written out from the extension's
+/// text in f64, one channel `c` of three: `dielectric_f0 = min(F0(ior) ×
+/// specularColor, 1) × specular`, `dielectric_f90 = specular`, the
+/// Fresnel mix of Appendix B with the diffuse lobe weighed by
+/// `1 − max_value(dielectric_fresnel)`; the metal part unchanged.
+fn khr_specular(
+    (n, v, l): (DVec3, DVec3, DVec3),
+    c: usize,
+    base: [f64; 3],
+    (metallic, roughness, ior): (f64, f64, f64),
+    (specular, colour): (f64, [f64; 3]),
+) -> f64 {
+    let (nv, nl) = (n.dot(v), n.dot(l));
+    if nv <= 0.0 || nl <= 0.0 {
+        return 0.0;
+    }
+    let h = (v + l).normalize();
+    let (nh, vh) = (n.dot(h), v.dot(h));
+    let a = roughness * roughness;
+    let a2 = a * a;
+    let d = a2 / (PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
+    let vis = 1.0
+        / ((nl + (a2 + (1.0 - a2) * nl * nl).sqrt()) * (nv + (a2 + (1.0 - a2) * nv * nv).sqrt()));
+    let specular_brdf = vis * d;
+    let w = (1.0 - vh.abs()).powi(5);
+    let f0_ior = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    let fresnel = |k: usize| {
+        let f0 = (f0_ior * colour[k]).min(1.0) * specular;
+        f0 + (specular - f0) * w
+    };
+    let max = fresnel(0).max(fresnel(1)).max(fresnel(2));
+    let dielectric = fresnel(c) * specular_brdf + (1.0 - max) * base[c] / PI;
+    let metal = specular_brdf * (base[c] + (1.0 - base[c]) * w);
+    dielectric * (1.0 - metallic) + metal * metallic
+}
+
+/// The value of a `KHR_materials_specular` material through the material
+/// seam (`Surface::of`, as both engines evaluate it) is the extension's
+/// formula written out in f64, over specular strengths and colours
+/// (coloured, beyond 1 and clamped), indices (`KHR_materials_ior`, 0
+/// included: F0 = 1), metalness and roughness; and the defaults are
+/// Appendix B bit for bit.
+#[test]
+fn specular_is_the_extensions_formula_through_the_material_seam() {
+    use wavetrace::integrator::bsdf::Surface;
+    let mut rng = Rng::new(41);
+    let cases: [(f32, [f32; 3], f32); 6] = [
+        (1.0, [1.0, 1.0, 1.0], 1.5),
+        (0.5, [1.0, 0.2, 0.6], 1.5),
+        (1.0, [2.0, 0.5, 40.0], 1.5),
+        (0.8, [1.0, 1.0, 1.0], 1.33),
+        (0.3, [0.7, 1.0, 0.1], 2.4),
+        (1.0, [0.9, 0.6, 0.3], 0.0),
+    ];
+    let mut worst = 0.0f64;
+    for (k, (specular, colour, ior)) in cases.into_iter().enumerate() {
+        for i in 0..20_000 {
+            let metallic = [0.0f32, 0.4, 1.0][i % 3];
+            let roughness = [0.2f32, 0.5, 1.0][i % 3];
+            let m = specular_material(BASE, (metallic, roughness), ior, (specular, colour));
+            let surface = Surface::of(&m);
+            let c = rng.d().max(0.05);
+            let s = Setup::new(&mut rng, c);
+            let wi = v32(rng.unit());
+            let (fcos, cos, _) = surface.eval(s.n, s.wo, wi, true);
+            if cos < 1e-3 {
+                continue;
+            }
+            let got = [fcos.x, fcos.y, fcos.z].map(|x| x as f64 / cos as f64);
+            for (c, got) in got.into_iter().enumerate() {
+                let want = khr_specular(
+                    (v64(s.n), v64(s.wo), v64(wi)),
+                    c,
+                    BASE.map(f64::from),
+                    (metallic as f64, roughness as f64, ior as f64),
+                    (specular as f64, colour.map(f64::from)),
+                );
+                let rel = (got - want).abs() / want.max(1e-3);
+                assert!(rel < 2e-3, "case {k} channel {c}: {got} vs {want}");
+                worst = worst.max(rel);
+            }
+            if k == 0 {
+                // The defaults: Appendix B's own arithmetic, bit for bit.
+                let p = params(BASE, metallic, roughness);
+                let plain = mr::eval(s.n, s.wo, wi, &p).scale(cos);
+                let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+                assert_eq!(bits(plain), bits(fcos));
+            }
+        }
+    }
+    eprintln!("KHR_materials_specular vs its formula (f64): worst relative difference {worst:.2e}");
+}
+
+/// At normal incidence (`wo = wi = n`: `V·H = 1`, `D = 1/(π α²)`,
+/// `V = 1/4`) the value is the closed form
+/// `f = min(F0(ior) specularColor, 1) specular / (4π α²) + (1 − max F0) base/π`
+/// of a dielectric: the specular colour tints `F0` channel by channel.
+#[test]
+fn specular_colour_tints_f0_at_normal_incidence() {
+    use wavetrace::integrator::bsdf::Surface;
+    let n = V3::new(0.0, 0.0, 1.0);
+    for (specular, colour, ior, roughness) in [
+        (1.0f32, [1.0f32, 0.25, 4.0], 1.5f32, 0.5f32),
+        (0.6, [0.5, 1.0, 40.0], 1.7, 0.7),
+        (0.0, [1.0, 1.0, 1.0], 1.5, 0.4),
+    ] {
+        let m = specular_material(BASE, (0.0, roughness), ior, (specular, colour));
+        let (fcos, cos, _) = Surface::of(&m).eval(n, n, n, true);
+        let a2 = (roughness as f64).powi(4);
+        let f0_ior = ((ior as f64 - 1.0) / (ior as f64 + 1.0)).powi(2);
+        let f0 = colour.map(|c| (f0_ior * c as f64).min(1.0) * specular as f64);
+        let max = f0[0].max(f0[1]).max(f0[2]);
+        for (c, got) in [fcos.x, fcos.y, fcos.z].into_iter().enumerate() {
+            let want = f0[c] / (4.0 * PI * a2) + (1.0 - max) * BASE[c] as f64 / PI;
+            let got = got as f64 / cos as f64;
+            assert!(
+                (got / want - 1.0).abs() < 1e-5,
+                "specular {specular}, colour {colour:?}, ior {ior}: channel {c}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+/// `specular = 0` removes the specular lobe: the dielectric is Lambert's
+/// `base/π` for every pair of directions, every sample's weight is the
+/// base colour exactly (a white furnace of albedo `base`), and a metal is
+/// unaffected.
+#[test]
+fn specular_zero_leaves_the_diffuse_lobe_alone() {
+    use wavetrace::integrator::bsdf::Surface;
+    let mut rng = Rng::new(42);
+    for roughness in [0.1f32, 0.5, 1.0] {
+        for colour in [[1.0f32; 3], [0.2, 3.0, 1.0]] {
+            let m = specular_material(BASE, (0.0, roughness), 1.5, (0.0, colour));
+            let surface = Surface::of(&m);
+            let (mut sum, count) = (0.0f64, 20_000);
+            for _ in 0..count {
+                let c = rng.d().max(0.02);
+                let s = Setup::new(&mut rng, c);
+                let wi = v32(rng.unit());
+                let (fcos, cos, _) = surface.eval(s.n, s.wo, wi, true);
+                if cos > 0.0 {
+                    let want = BASE[1] as f64 / PI;
+                    assert!((fcos.y as f64 / cos as f64 / want - 1.0).abs() < 1e-5);
+                }
+                let smp = surface.sample(s.n, -s.wo, rng.u2(), false);
+                let w = smp.weigh(V3::new(1.0, 1.0, 1.0));
+                if smp.cos > 0.0 {
+                    for (c, w) in [w.x, w.y, w.z].into_iter().enumerate() {
+                        assert!((w - BASE[c]).abs() < 1e-5, "weight {w} vs {}", BASE[c]);
+                    }
+                }
+                sum += w.y as f64;
+            }
+            let albedo = sum / count as f64;
+            eprintln!("specular 0, roughness {roughness}, colour {colour:?}: albedo {albedo:.5}");
+            assert!((albedo - BASE[1] as f64).abs() < 1e-3);
+        }
+    }
+    // A metal: the same with any specular.
+    let s = Setup::new(&mut rng, 0.6);
+    let wi = v32(rng.unit());
+    let a = Surface::of(&specular_material(BASE, (1.0, 0.5), 1.5, (0.0, [0.3; 3])));
+    let b = Surface::of(&specular_material(BASE, (1.0, 0.5), 1.5, (1.0, [1.0; 3])));
+    let (fa, fb) = (a.eval(s.n, s.wo, wi, true).0, b.eval(s.n, s.wo, wi, true).0);
+    assert_eq!([fa.x, fa.y, fa.z], [fb.x, fb.y, fb.z]);
+}
+
+/// Sampling still draws directions with the density `pdf` claims with
+/// `KHR_materials_specular` (χ²), and a density that ignores the
+/// extension's Fresnel (the default lobe choice) is rejected.
+#[test]
+fn chi2_sampling_matches_the_density_with_khr_materials_specular() {
+    let mut rng = Rng::new(43);
+    let tinted = |specular: f32, colour: [f32; 3], metallic: f32, roughness: f32| {
+        let f0 = colour.map(|c| (0.04 * c).min(1.0) * specular);
+        Params {
+            f0: V3::new(f0[0], f0[1], f0[2]),
+            f90: specular,
+            ..params(BASE, metallic, roughness)
+        }
+    };
+    for (specular, colour, metallic, roughness, cos_o) in [
+        (0.5f32, [1.0f32, 0.2, 6.0], 0.0f32, 0.3f32, 0.9f64),
+        (0.2, [1.0, 1.0, 1.0], 0.0, 0.6, 0.3),
+        (1.0, [10.0, 25.0, 3.0], 0.5, 0.3, 0.3),
+        (0.0, [1.0, 1.0, 1.0], 0.3, 0.6, 0.9),
+    ] {
+        let p = tinted(specular, colour, metallic, roughness);
+        let o = chi2_case(&mut rng, &p, cos_o, |n, wo, wi| mr::pdf(n, wo, wi, &p));
+        let name = format!(
+            "specular {specular}, colour {colour:?}, metallic {metallic}, roughness {roughness}, cos θo {cos_o}"
+        );
+        check(&name, &o, true);
+    }
+    // Broken: the density of the default specular (F0 0.04, F90 1).
+    let p = tinted(0.1, [1.0; 3], 0.0, 0.3);
+    let o = chi2_case(&mut rng, &p, 0.9, |n, wo, wi| {
+        mr::pdf(n, wo, wi, &params(BASE, 0.0, 0.3))
+    });
+    check("broken: the default specular's density", &o, false);
 }

@@ -1141,6 +1141,7 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
         ("wall.glb", emissive_wall()),
         ("tilt.glb", tilted_quad(None, 0.5)),
         ("transmission.glb", transmissive()),
+        ("specular.glb", specular_and_volume()),
     ] {
         let scene = scene_of(&dir, name, &bytes);
         for integrator in [Integrator::Report, Integrator::Bsdf, Integrator::Nee] {
@@ -1175,6 +1176,7 @@ fn a_textured_image_is_the_same_whatever_threads_batches_and_lanes() {
         ("wall.glb", emissive_wall()),
         ("tilt.glb", tilted_quad(Some(-1.0), 0.8)),
         ("transmission.glb", transmissive()),
+        ("specular.glb", specular_and_volume()),
     ] {
         same_whatever_threads_batches_and_lanes(&scene_of(&dir, name, &bytes), name);
     }
@@ -1535,5 +1537,295 @@ fn alpha_and_object_ids_count_cut_outs_as_misses() {
                 .collect();
             assert_eq!(film.aov.objects[i], counts, "{engine:?} pixel {i}");
         }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// KHR_materials_specular and KHR_materials_volume's attenuation
+
+/// A box of side 1 of a smooth solid transmission material of index 1
+/// (light goes straight through, nothing reflected), attenuation colour
+/// `colour` over `distance` (`None`: no attenuation), seen end-on under
+/// the default sky by a narrow camera on its axis.
+fn absorbing_box(attenuation: Option<([f32; 3], f32)>) -> Vec<u8> {
+    let mut g = Gltf::default();
+    let volume = match attenuation {
+        Some((c, d)) => format!(r#", "attenuationColor": {c:?}, "attenuationDistance": {d:?}"#),
+        None => String::new(),
+    };
+    let extra: &'static str = Box::leak(
+        format!(
+            r#", "extensions": {{"KHR_materials_transmission": {{"transmissionFactor": 1.0}}, "KHR_materials_ior": {{"ior": 1.0}}, "KHR_materials_volume": {{"thicknessFactor": 1.0{volume}}}}}"#
+        )
+        .into_boxed_str(),
+    );
+    let m = g.material(Mat {
+        roughness: 0.0,
+        extra,
+        ..Mat::default()
+    });
+    let cube = g.cube(1.0, m);
+    g.node(cube, Vec3::ZERO, Quat::IDENTITY);
+    g.camera(Vec3::new(0.0, 0.0, 5.0), Quat::IDENTITY, 0.01, 1.0);
+    g.glb()
+}
+
+/// Beer–Lambert through a solid: a camera ray that crosses the box (1
+/// long; the camera's rays are within 0.005 rad of its axis, so no longer
+/// than 1 + 2·10⁻⁵) comes out attenuated by `colour^(1 / distance)` per
+/// channel, in both engines, against the same box without attenuation.
+#[test]
+fn an_absorbing_solid_transmits_colour_to_the_power_of_length_over_distance() {
+    let dir = TempDir::new("absorb");
+    let (colour, distance) = ([0.5f32, 0.25, 0.8], 0.5f32);
+    let clear = scene_of(&dir, "clear.glb", &absorbing_box(None));
+    let dark = scene_of(&dir, "dark.glb", &absorbing_box(Some((colour, distance))));
+    assert!(dark.materials[0].absorbs() && !clear.materials[0].absorbs());
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        let film = |scene: &Scene| {
+            let mut s = settings(scene, 8, 8, 4);
+            s.engine = engine;
+            render(scene, &s).to_rgb()
+        };
+        let (a, b) = (film(&clear), film(&dark));
+        for (pa, pb) in a.iter().zip(&b) {
+            for c in 0..3 {
+                let want = (colour[c] as f64).powf(1.0 / distance as f64);
+                let got = pb[c] as f64 / pa[c] as f64;
+                assert!(
+                    (got - want).abs() < 2e-4 * want,
+                    "{engine:?}: channel {c}: transmittance {got}, Beer–Lambert {want}"
+                );
+            }
+        }
+        eprintln!(
+            "{engine:?}: transmittance {:?} (clear {:?})",
+            [0, 1, 2].map(|c| b[27][c] / a[27][c]),
+            a[27]
+        );
+    }
+}
+
+/// A scene of both extensions: a floor whose specular strength (A) and
+/// colour (RGB, sRGB) are textured, an opaque dielectric of tinted
+/// specular, a rough solid of tinted specular that absorbs, a smooth
+/// absorbing solid (glass), a thin pane of half specular, under a lamp.
+fn specular_and_volume() -> Vec<u8> {
+    let mut g = Gltf::default();
+    let stripes: Vec<u8> = (0..8u32)
+        .flat_map(|j| (0..8u32).map(move |i| (i, j)))
+        .flat_map(|(i, j)| match (i + j) % 2 {
+            0 => [255, 120, 40, 255],
+            _ => [40, 200, 255, 30],
+        })
+        .collect();
+    let stripes = g.texture(8, 8, stripes, 9728);
+    let floor_ext: &'static str = Box::leak(
+        format!(
+            r#", "extensions": {{"KHR_materials_specular": {{"specularFactor": 0.9, "specularTexture": {{"index": {stripes}}}, "specularColorFactor": [2.0, 2.0, 2.0], "specularColorTexture": {{"index": {stripes}}}}}}}"#
+        )
+        .into_boxed_str(),
+    );
+    let floor = g.material(Mat {
+        base: [0.6, 0.6, 0.6, 1.0],
+        roughness: 0.3,
+        extra: floor_ext,
+        ..Mat::default()
+    });
+    let opaque = g.material(Mat {
+        base: [0.2, 0.3, 0.8, 1.0],
+        roughness: 0.25,
+        extra: r#", "extensions": {"KHR_materials_specular": {"specularFactor": 0.7, "specularColorFactor": [1.0, 0.4, 8.0]}, "KHR_materials_ior": {"ior": 1.8}}"#,
+        ..Mat::default()
+    });
+    let rough = g.material(Mat {
+        base: [0.95, 0.95, 1.0, 1.0],
+        roughness: 0.35,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationColor": [0.9, 0.5, 0.2], "attenuationDistance": 0.6}, "KHR_materials_specular": {"specularColorFactor": [1.0, 3.0, 1.0]}}"#,
+        ..Mat::default()
+    });
+    let glass = g.material(Mat {
+        roughness: 0.0,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationColor": [0.3, 0.8, 0.5], "attenuationDistance": 0.8}}"#,
+        ..Mat::default()
+    });
+    let thin = g.material(Mat {
+        base: [1.0, 0.9, 0.7, 1.0],
+        roughness: 0.2,
+        extra: r#", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.9}, "KHR_materials_specular": {"specularFactor": 0.5}}"#,
+        ..Mat::default()
+    });
+    let lamp = g.material(Mat {
+        base: [0.0, 0.0, 0.0, 1.0],
+        emissive: [1.0, 1.0, 1.0],
+        strength: 8.0,
+        ..Mat::default()
+    });
+    let s = 2.5;
+    let floor = g.quad(
+        [
+            Vec3::new(-s, 0.0, -s),
+            Vec3::new(-s, 0.0, s),
+            Vec3::new(s, 0.0, s),
+            Vec3::new(s, 0.0, -s),
+        ],
+        [[0.0, 0.0], [0.0, 2.0], [2.0, 2.0], [2.0, 0.0]],
+        floor,
+    );
+    g.node(floor, Vec3::ZERO, Quat::IDENTITY);
+    for (m, side, at, turn) in [
+        (opaque, 0.8, Vec3::new(-1.2, 0.4, -0.4), 0.3),
+        (rough, 0.9, Vec3::new(0.0, 0.45, 0.0), -0.5),
+        (glass, 0.8, Vec3::new(1.2, 0.4, -0.2), 0.7),
+    ] {
+        let cube = g.cube(side, m);
+        g.node(cube, at, Quat::from_rotation_y(turn));
+    }
+    let h = 0.5;
+    let pane = g.quad(
+        [
+            Vec3::new(-h, 0.0, 0.0),
+            Vec3::new(h, 0.0, 0.0),
+            Vec3::new(h, 2.0 * h, 0.0),
+            Vec3::new(-h, 2.0 * h, 0.0),
+        ],
+        [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+        thin,
+    );
+    g.node(pane, Vec3::new(0.4, 0.0, 1.3), Quat::from_rotation_y(-0.3));
+    let l = 0.9;
+    let panel = g.quad(
+        [
+            Vec3::new(-l, 0.0, -l),
+            Vec3::new(l, 0.0, -l),
+            Vec3::new(l, 0.0, l),
+            Vec3::new(-l, 0.0, l),
+        ],
+        [[0.0; 2]; 4],
+        lamp,
+    );
+    g.node(panel, Vec3::new(0.0, 3.2, 0.3), Quat::IDENTITY);
+    let eye = Vec3::new(0.0, 1.7, 4.4);
+    let pitch = -((1.7f32 - 0.4) / 4.4).atan();
+    g.camera(eye, Quat::from_rotation_x(pitch), 0.75, 4.0 / 3.0);
+    g.glb()
+}
+
+/// The specular asset's materials are read as the extensions say.
+#[test]
+fn specular_and_attenuation_are_read_into_the_materials() {
+    use wavetrace::scene::Model;
+    let dir = TempDir::new("specular");
+    let scene = scene_of(&dir, "specular.glb", &specular_and_volume());
+    let m = |k: usize| &scene.materials[k];
+    assert!(m(0).maps.specular.is_some() && m(0).maps.specular_colour.is_some());
+    assert_eq!(
+        (m(0).specular, m(0).specular_colour),
+        (0.9, glam::Vec3::splat(2.0))
+    );
+    assert_eq!(
+        (m(1).model, m(1).ior, m(1).specular),
+        (Model::MetallicRoughness, 1.8, 0.7)
+    );
+    assert!(m(2).model == Model::Transmission && m(2).absorbs());
+    assert_eq!(m(2).attenuation_distance, 0.6);
+    assert!(m(3).model == Model::Glass && m(3).absorbs());
+    assert!(m(4).thin && !m(4).absorbs() && m(4).specular == 0.5);
+}
+
+/// A specular texture of alpha 0 is a specular factor of 0, and a
+/// specular colour texture is its decoded colour as a factor: the same
+/// image, bit for bit, in both engines.
+#[test]
+fn specular_textures_multiply_their_factors() {
+    let dir = TempDir::new("specular-textures");
+    let quad = |ext: &str, texel: Option<[u8; 4]>| {
+        let mut g = Gltf::default();
+        let extra = match texel {
+            Some(t) => {
+                let tex = g.texture(2, 2, t.repeat(4), 9728);
+                format!(
+                    r#", "extensions": {{"KHR_materials_specular": {{{ext}, "specularTexture": {{"index": {tex}}}, "specularColorTexture": {{"index": {tex}}}}}}}"#
+                )
+            }
+            None => format!(r#", "extensions": {{"KHR_materials_specular": {{{ext}}}}}"#),
+        };
+        let m = g.material(Mat {
+            base: [0.5, 0.5, 0.5, 1.0],
+            roughness: 0.3,
+            extra: Box::leak(extra.into_boxed_str()),
+            ..Mat::default()
+        });
+        let q = g.quad(
+            [
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, -1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(-1.0, 1.0, 0.0),
+            ],
+            [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+            m,
+        );
+        g.node(q, Vec3::ZERO, Quat::from_rotation_x(-0.6));
+        g.camera(Vec3::new(0.0, 0.0, 3.0), Quat::IDENTITY, 0.9, 1.0);
+        g.glb()
+    };
+    // sRGB 188 decodes to 0.5029…; alpha 0 is a strength of 0.
+    let decoded = wavetrace::scene::texture::srgb_to_linear(188.0 / 255.0) as f32;
+    let factor =
+        format!(r#""specularFactor": 0.0, "specularColorFactor": [{decoded:?}, 1.0, 1.0]"#);
+    let textured = scene_of(
+        &dir,
+        "t.glb",
+        &quad(r#""specularFactor": 1.0"#, Some([188, 255, 255, 0])),
+    );
+    let constant = scene_of(&dir, "c.glb", &quad(&factor, None));
+    let strong = scene_of(&dir, "s.glb", &quad(r#""specularFactor": 1.0"#, None));
+    for engine in [Engine::Reference, Engine::Wavefront] {
+        let film = |scene: &Scene| {
+            let mut s = settings(scene, 16, 16, 4);
+            s.engine = engine;
+            render(scene, &s).sums
+        };
+        let (a, b) = (film(&textured), film(&constant));
+        assert!(
+            a == b,
+            "{engine:?}: the textured specular differs from its factors"
+        );
+        assert!(
+            film(&strong) != a,
+            "{engine:?}: specular makes no difference"
+        );
+    }
+}
+
+/// A volume's attenuation outside its range is refused naming its JSON
+/// path: a colour beyond `[0, 1]`, a distance that is not positive.
+#[test]
+fn bad_attenuation_is_refused_with_its_json_path() {
+    let dir = TempDir::new("bad-attenuation");
+    for (volume, field) in [
+        (r#""attenuationDistance": -1.0"#, "attenuationDistance"),
+        (r#""attenuationDistance": 0.0"#, "attenuationDistance"),
+        (r#""attenuationColor": [0.5, 1.5, 0.5]"#, "attenuationColor"),
+    ] {
+        let mut g = Gltf::default();
+        let extra = format!(
+            r#", "extensions": {{"KHR_materials_transmission": {{"transmissionFactor": 1.0}}, "KHR_materials_volume": {{"thicknessFactor": 1.0, {volume}}}}}"#
+        );
+        let m = g.material(Mat {
+            extra: Box::leak(extra.into_boxed_str()),
+            ..Mat::default()
+        });
+        let cube = g.cube(1.0, m);
+        g.node(cube, Vec3::ZERO, Quat::IDENTITY);
+        let path = dir.join("bad.glb");
+        std::fs::write(&path, g.glb()).unwrap();
+        let Err(e) = asset_scene::load(&path, None) else {
+            panic!("{volume}: accepted");
+        };
+        let e = e.to_string();
+        let want = format!("materials[0].extensions.KHR_materials_volume.{field}");
+        assert!(e.contains(&want) && e.contains("bad.glb"), "{e}");
     }
 }

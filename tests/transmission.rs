@@ -107,6 +107,7 @@ fn params(roughness: f32, eta: f32, thin: bool) -> Params<f32> {
         alpha: roughness * roughness,
         eta,
         thin,
+        specular: Params::plain_specular(),
     }
 }
 
@@ -306,6 +307,8 @@ fn mixture(
         transmission,
         thin,
         front: true,
+        f0: V3::new(0.04, 0.04, 0.04),
+        specular: 1.0,
     }
 }
 
@@ -574,6 +577,12 @@ fn simd_equals_scalar_bitwise() {
                 transmission: rng.f().max(0.3),
                 thin: rng.f() < 0.5,
                 front: rng.f() < 0.5,
+                // KHR_materials_specular in half the lanes.
+                f0: match rng.f() < 0.5 {
+                    true => V3::new(rng.f(), rng.f(), rng.f()),
+                    false => V3::new(0.04, 0.04, 0.04),
+                },
+                specular: rng.f().max(0.5),
             };
             (n, wo, wi, p, rng.u2())
         });
@@ -606,6 +615,8 @@ fn simd_equals_scalar_bitwise() {
             transmission: s8(&|l| lanes[l].3.transmission),
             thin: m8(&|l| lanes[l].3.thin),
             front: m8(&|l| lanes[l].3.front),
+            f0: v8(&|l| lanes[l].3.f0),
+            specular: s8(&|l| lanes[l].3.specular),
         };
         let u = [s8(&|l| lanes[l].4[0]), s8(&|l| lanes[l].4[1])];
         let f8 = tr::eval(n, wo, wi, &p);
@@ -627,6 +638,132 @@ fn simd_equals_scalar_bitwise() {
             assert_eq!(s.pdf.to_bits(), smp8.pdf.to_array()[l].to_bits());
             assert_eq!(s.cos.to_bits(), smp8.cos.to_array()[l].to_bits());
             assert_eq!(s.delta, smp8.delta.to_array()[l] != 0.0);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// KHR_materials_specular on the interface
+
+/// `(F0(ior), F0 colour, strength)` of `KHR_materials_specular` for an
+/// index, a colour and a strength, as the material seam makes them.
+fn interface_specular(ior: f32, colour: [f32; 3], strength: f32) -> (f32, V3<f32>, f32) {
+    let f0 = wavetrace::scene::material::f0_of_ior(ior);
+    let c = wavetrace::scene::material::dielectric_f0(ior, glam::Vec3::from(colour));
+    (f0, V3::new(c.x, c.y, c.z), strength)
+}
+
+/// The interface with `KHR_materials_specular` is the plain one with its
+/// exact Fresnel term `F` remapped as the extension's `fresnel_mix`
+/// would have it: reflection `× strength (F0c + (1 − F0c) s) / F`,
+/// transmission `× (1 − max) / (1 − F)`, `s = (F − F0) / (1 − F0)`
+/// (written out in f64 here); the default specular is the plain interface
+/// bit for bit; and a smooth interface at normal incidence reflects the
+/// closed form `min(F0 specularColor, 1) × strength` and transmits the
+/// rest of the largest channel.
+#[test]
+fn interface_specular_remaps_the_exact_fresnel_term() {
+    let mut rng = Rng::new(61);
+    let colour = [1.0f32, 0.3, 12.0];
+    let mut checked = 0;
+    for i in 0..60_000 {
+        let (eta, thin) = SIDES[i % 3];
+        let ior = if thin || eta > 1.0 { eta } else { 1.0 / eta };
+        let roughness = ROUGHNESS[i % 3];
+        let plain = params(roughness, eta, thin);
+        let strength = [1.0f32, 0.6, 0.0][i % 3];
+        let tinted = Params {
+            specular: interface_specular(ior, colour, strength),
+            ..plain
+        };
+        let default = Params {
+            specular: interface_specular(ior, [1.0; 3], 1.0),
+            ..plain
+        };
+        let c = rng.d().max(0.05);
+        let s = Setup::new(&mut rng, c);
+        let wi = v32(rng.unit());
+        let u = rng.u2();
+        // The default: the plain interface, bit for bit.
+        let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+        let (a, b) = (
+            dielectric::sample(s.n, s.wo, &plain, u),
+            dielectric::sample(s.n, s.wo, &default, u),
+        );
+        assert_eq!(bits(a.f), bits(b.f));
+        let (fp, fd) = (
+            dielectric::eval(s.n, s.wo, wi, &plain),
+            dielectric::eval(s.n, s.wo, wi, &default),
+        );
+        assert_eq!(bits(fp), bits(fd));
+        // The remap, against f64.
+        let ft = dielectric::eval(s.n, s.wo, wi, &tinted);
+        let (n, wo, wi64) = (v64(s.n), v64(s.wo), v64(wi));
+        let ci = n.dot(wi64);
+        if fp.x <= 1e-4 || ci.abs() < 1e-3 {
+            continue;
+        }
+        let wr = if ci > 0.0 {
+            wi64
+        } else {
+            wi64 - n * (2.0 * ci)
+        };
+        let h = if ci > 0.0 || thin {
+            (wo + wr).normalize()
+        } else {
+            let h = (wo + wi64 * eta as f64).normalize();
+            if n.dot(h) < 0.0 { -h } else { h }
+        };
+        let f = fresnel(wo.dot(h), eta as f64);
+        if f > 0.9 {
+            continue; // (near total reflection, f32's F and f64's part)
+        }
+        let f0 = ((ior as f64 - 1.0) / (ior as f64 + 1.0)).powi(2);
+        let shape = (f - f0) / (1.0 - f0);
+        let r = colour.map(|c| {
+            let c0 = (f0 * c as f64).min(1.0);
+            strength as f64 * (c0 + (1.0 - c0) * shape)
+        });
+        let max = r[0].max(r[1]).max(r[2]);
+        for (k, (got, plain)) in [(ft.x, fp.x), (ft.y, fp.y), (ft.z, fp.z)]
+            .into_iter()
+            .enumerate()
+        {
+            let want = match ci > 0.0 {
+                true => plain as f64 * r[k] / f,
+                false => plain as f64 * (1.0 - max) / (1.0 - f),
+            };
+            assert!(
+                (got as f64 - want).abs() <= 2e-4 * want.abs() + 1e-6,
+                "{i}: channel {k}: {got} vs {want} (F {f}, strength {strength}, thin {thin}, eta {eta})"
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 5_000, "{checked}");
+    // Smooth, at normal incidence.
+    let n = V3::new(0.0, 0.0, 1.0);
+    for (strength, colour) in [(1.0f32, [1.0f32, 0.5, 30.0]), (0.4, [2.0, 1.0, 0.0])] {
+        let p = Params {
+            specular: interface_specular(1.5, colour, strength),
+            ..params(0.0, 1.5, false)
+        };
+        let f0 = 0.04f64;
+        let r = dielectric::sample(n, n, &p, [0.0, 0.5]);
+        let t = dielectric::sample(n, n, &p, [0.999, 0.5]);
+        let want = colour.map(|c| (f0 * c as f64).min(1.0) * strength as f64);
+        let max = want[0].max(want[1]).max(want[2]);
+        for (k, (r, t)) in [(r.f.x, t.f.x), (r.f.y, t.f.y), (r.f.z, t.f.z)]
+            .into_iter()
+            .enumerate()
+        {
+            // Reflection is chosen with probability F = F0.
+            assert!((r as f64 * f0 - want[k]).abs() < 1e-6, "reflected {r}");
+            let t_want = (1.0 - max) / (1.0 - f0) / (1.5 * 1.5);
+            assert!(
+                (t as f64 - t_want).abs() < 1e-6,
+                "transmitted {t} vs {t_want}"
+            );
         }
     }
 }

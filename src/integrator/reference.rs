@@ -216,6 +216,10 @@ impl ReferenceTracer {
             .tables
             .surface(hit.triangle as usize, (V3::from(o), V3::from(d)), hit.t);
         let material = &self.materials[s.material as usize];
+        // A ray that crossed an absorbing solid from inside: its
+        // transmittance weighs everything from here on.
+        let absorbed = self.tables.transmittance(&s, hit.t).map(Vec3::from);
+        let beta = absorbed.map_or(beta, |a| beta * a);
         // AOVs: the camera ray's distance; the first non-specular vertex.
         if depth == 0
             && let Some(a) = aov.as_deref_mut()
@@ -301,7 +305,8 @@ impl ReferenceTracer {
             counters,
             aov,
         );
-        radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival
+        let radiance = radiance + Vec3::from(s.f) * incoming * s.cos / s.pdf / survival;
+        absorbed.map_or(radiance, |a| radiance * a)
     }
 
     /// One camera sample of pixel `(x, y)`: jittered uniformly over the

@@ -77,6 +77,13 @@ pub struct Tables {
     pub metallic: Vec<f32>,
     /// Each material's transmission factor and thin flag (transmission).
     pub transmission: [Vec<f32>; 2],
+    /// Each material's `KHR_materials_specular` strength and `F0` colour
+    /// R, G, B ([`Surface::specular`], [`Surface::f0`]).
+    pub specular: [Vec<f32>; 4],
+    /// Whether some material absorbs light inside it
+    /// ([`Material::absorbs`]): paths are then attenuated on the way out
+    /// ([`Tables::transmittance`]).
+    absorbing: bool,
     /// The materials, for the textured ones' lookups
     /// ([`Tables::scattering`]).
     materials: Vec<Material>,
@@ -177,6 +184,13 @@ impl Tables {
                 surfaces.iter().map(|s| s.transmission).collect(),
                 surfaces.iter().map(|s| s.thin).collect(),
             ],
+            specular: [
+                surfaces.iter().map(|s| s.specular).collect(),
+                surfaces.iter().map(|s| s.f0.x).collect(),
+                surfaces.iter().map(|s| s.f0.y).collect(),
+                surfaces.iter().map(|s| s.f0.z).collect(),
+            ],
+            absorbing: scene.materials.iter().any(Material::absorbs),
             materials: scene.materials.clone(),
             textured: Model::ALL.map(|model| {
                 (scene.materials.iter()).any(|m| {
@@ -490,7 +504,44 @@ impl Tables {
                 Model::Transmission => of_mat(&self.transmission[1]),
                 _ => f32x8::ZERO,
             },
+            specular: match model {
+                Model::MetallicRoughness | Model::Transmission => of_mat(&self.specular[0]),
+                _ => f32x8::splat(1.0),
+            },
+            f0: match model {
+                Model::MetallicRoughness | Model::Transmission => V3::new(
+                    of_mat(&self.specular[1]),
+                    of_mat(&self.specular[2]),
+                    of_mat(&self.specular[3]),
+                ),
+                _ => {
+                    let f0 = f32x8::splat(crate::scene::material::DIELECTRIC_F0);
+                    V3::new(f0, f0, f0)
+                }
+            },
         }
+    }
+
+    /// Whether some material absorbs light inside it
+    /// ([`Material::absorbs`]).
+    #[inline(always)]
+    pub fn has_absorption(&self) -> bool {
+        self.absorbing
+    }
+
+    /// What reaches the hit `hit` of a ray from inside the medium it
+    /// travelled through: where the hit is on the back of a material that
+    /// absorbs ([`Material::absorbs`]: the ray crossed its solid from the
+    /// point it entered, or left, to here), the transmittance of the
+    /// segment's length `t` ([`Material::transmittance`]); `None`
+    /// elsewhere. The one factor both engines multiply the path's
+    /// throughput by, before anything else at the vertex.
+    #[inline]
+    pub fn transmittance(&self, hit: &SurfaceHit<f32>, t: f32) -> Option<[f32; 3]> {
+        if !self.absorbing || hit.front {
+            return None;
+        }
+        self.materials[hit.material as usize].transmittance(t)
     }
 
     /// Whether some material's emission is textured: emitted radiance is
@@ -635,7 +686,21 @@ impl Tables {
             None => (1.0, 1.0),
         };
         let transmission = m.maps.transmission.as_ref().map_or(1.0, |t| lookup(t)[0]);
-        Surface::textured(m, colour, (metal, rough, transmission))
+        let specular = m.maps.specular.as_ref().map_or(1.0, |t| lookup(t)[3]);
+        let specular_colour = m
+            .maps
+            .specular_colour
+            .as_ref()
+            .map_or(glam::Vec3::ONE, |t| {
+                let c = lookup(t);
+                glam::Vec3::new(c[0], c[1], c[2])
+            });
+        Surface::textured(
+            m,
+            colour,
+            (metal, rough, transmission),
+            (specular, specular_colour),
+        )
     }
 
     /// [`surfaces`](Self::surfaces) of eight lanes at their hits `hit`:
@@ -666,6 +731,8 @@ impl Tables {
             metallic: col(|s| s.metallic),
             transmission: col(|s| s.transmission),
             thin: col(|s| s.thin),
+            specular: col(|s| s.specular),
+            f0: V3::new(col(|s| s.f0.x), col(|s| s.f0.y), col(|s| s.f0.z)),
         }
     }
 

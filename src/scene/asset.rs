@@ -133,6 +133,12 @@ pub struct PbrMaterial {
     pub specular: f32,
     /// `KHR_materials_specular`'s colour.
     pub specular_colour: [f32; 3],
+    /// `KHR_materials_specular`'s `specularTexture` (linear; A multiplies
+    /// the factor).
+    pub specular_texture: Option<TextureRef>,
+    /// `KHR_materials_specular`'s `specularColorTexture` (sRGB; RGB
+    /// multiplies the colour).
+    pub specular_colour_texture: Option<TextureRef>,
     /// `KHR_materials_transmission`'s factor (0 without).
     pub transmission: f32,
     /// `KHR_materials_transmission`'s texture (linear; R multiplies the
@@ -140,6 +146,12 @@ pub struct PbrMaterial {
     pub transmission_texture: Option<TextureRef>,
     /// `KHR_materials_volume`'s thickness factor (0: thin-walled).
     pub thickness: f32,
+    /// `KHR_materials_volume`'s attenuation colour (linear RGB in
+    /// `[0, 1]`; white without).
+    pub attenuation_colour: [f32; 3],
+    /// `KHR_materials_volume`'s attenuation distance (positive; infinite
+    /// without: no absorption).
+    pub attenuation_distance: f32,
 }
 
 impl PbrMaterial {
@@ -159,9 +171,13 @@ impl PbrMaterial {
         ior: 1.5,
         specular: 1.0,
         specular_colour: [1.0; 3],
+        specular_texture: None,
+        specular_colour_texture: None,
         transmission: 0.0,
         transmission_texture: None,
         thickness: 0.0,
+        attenuation_colour: [1.0; 3],
+        attenuation_distance: f32::INFINITY,
     };
 }
 

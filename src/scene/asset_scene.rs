@@ -18,8 +18,11 @@
 //! of the diffuse lobe; the transmission texture's R looked up per hit),
 //! thin-walled without `KHR_materials_volume` or with a thickness of 0,
 //! the boundary of a solid otherwise; a smooth, fully transmitting,
-//! untextured solid is [`Model::Glass`], the same scattering as a delta
-//! model. Normal textures bend the
+//! untextured solid of the default specular is [`Model::Glass`], the same
+//! scattering as a delta model. `KHR_materials_ior` and
+//! `KHR_materials_specular` (factors and textures as [`Maps`]) set the
+//! dielectric Fresnel term; `KHR_materials_volume`'s attenuation makes a
+//! solid absorb ([`Material::absorbs`]). Normal textures bend the
 //! shading normal ([`Maps::normal`]) where the mesh has tangents (the
 //! file's, or generated).
 //!
@@ -123,6 +126,8 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
         out.maps.emissive_factor = Vec3::from(m.emissive).max(Vec3::ZERO);
     }
     out.maps.normal = m.normal_texture.map(scene_ref);
+    out.attenuation_colour = Vec3::from(m.attenuation_colour);
+    out.attenuation_distance = m.attenuation_distance;
     if is_plain_glass(m) {
         out.model = Model::Glass;
         out.ior = m.ior;
@@ -132,9 +137,16 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
     out.model = Model::MetallicRoughness;
     out.metallic = m.metallic.clamp(0.0, 1.0);
     out.roughness = m.roughness.clamp(0.0, 1.0);
+    // KHR_materials_ior and _specular: the dielectric Fresnel term (an
+    // index of 0 is the specification's F0 = 1).
+    out.ior = m.ior.max(0.0);
+    out.specular = m.specular.clamp(0.0, 1.0);
+    out.specular_colour = Vec3::from(m.specular_colour).max(Vec3::ZERO);
     out.maps = Maps {
         base_colour: m.base_colour_texture.map(scene_ref),
         metallic_roughness: m.metallic_roughness_texture.map(scene_ref),
+        specular: m.specular_texture.map(scene_ref),
+        specular_colour: m.specular_colour_texture.map(scene_ref),
         ..out.maps
     };
     out.opacity = m.base_colour[3].clamp(0.0, 1.0);
@@ -156,7 +168,8 @@ pub fn material(asset: &Asset, m: &PbrMaterial, first_texture: u32) -> Material 
 /// Whether `m` is a smooth, fully transmitting dielectric solid without
 /// textures on its scattering (transmission 1, metalness 0, roughness² below
 /// [`SMOOTH_ALPHA`], a `KHR_materials_volume` thickness above 0, an index
-/// of refraction in [`IOR_RANGE`]): [`Model::Glass`] of its index and base
+/// of refraction in [`IOR_RANGE`], the default `KHR_materials_specular`):
+/// [`Model::Glass`] of its index and base
 /// colour, which is what [`Model::Transmission`] computes for it, as a
 /// delta model (no light sampling at its surface).
 fn is_plain_glass(m: &PbrMaterial) -> bool {
@@ -169,6 +182,10 @@ fn is_plain_glass(m: &PbrMaterial) -> bool {
         && m.metallic_roughness_texture.is_none()
         && m.transmission_texture.is_none()
         && m.alpha_mode == AlphaMode::Opaque
+        && m.specular == 1.0
+        && m.specular_colour == [1.0; 3]
+        && m.specular_texture.is_none()
+        && m.specular_colour_texture.is_none()
 }
 
 /// Adds `asset` to the scene `b` builds: its textures, its materials

@@ -576,6 +576,88 @@ impl Reader<'_> {
         )
     }
 
+    /// `KHR_materials_specular`'s `(specularTexture, specularColorTexture)`
+    /// of material `m` (at `at`): linear (A read), and sRGB (RGB read).
+    fn specular_textures(
+        &mut self,
+        m: &gltf::Material,
+        at: &str,
+    ) -> Result<(Option<TextureRef>, Option<TextureRef>), AssetError> {
+        let at = format!("{at}.extensions.KHR_materials_specular");
+        let s = m.specular();
+        let strength = self.info(
+            s.as_ref().and_then(|s| s.specular_texture()),
+            ColourSpace::Linear,
+            &format!("{at}.specularTexture"),
+        )?;
+        let colour = self.info(
+            s.as_ref().and_then(|s| s.specular_color_texture()),
+            ColourSpace::Srgb,
+            &format!("{at}.specularColorTexture"),
+        )?;
+        Ok((strength, colour))
+    }
+
+    /// `KHR_materials_volume`'s `(attenuationColor, attenuationDistance)`
+    /// of material `m` (at `at`): a colour in `[0, 1]` and a positive
+    /// distance (infinite: none), else refused.
+    fn attenuation(&self, m: &gltf::Material, at: &str) -> Result<([f32; 3], f32), AssetError> {
+        let Some(v) = m.volume() else {
+            return Ok(([1.0; 3], f32::INFINITY));
+        };
+        let at = format!("{at}.extensions.KHR_materials_volume");
+        let (colour, distance) = (v.attenuation_color(), v.attenuation_distance());
+        if !colour.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return Err(self.err(
+                format!("{at}.attenuationColor"),
+                "each component must be in [0, 1]",
+            ));
+        }
+        if distance.is_nan() || distance <= 0.0 {
+            return Err(self.err(
+                format!("{at}.attenuationDistance"),
+                format!("must be a positive distance (infinite: no attenuation), not {distance}"),
+            ));
+        }
+        Ok((colour, distance))
+    }
+
+    /// The normal texture of material `m` (at `at`), with its `scale` and
+    /// `KHR_texture_transform` (linear).
+    fn normal_texture(
+        &mut self,
+        m: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<TextureRef>, AssetError> {
+        Ok(match m.normal_texture() {
+            Some(n) => {
+                let transform = n.extension_value("KHR_texture_transform").and_then(|v| {
+                    serde_json::from_value::<gltf::json::extensions::texture::TextureTransform>(
+                        v.clone(),
+                    )
+                    .ok()
+                });
+                let tt = transform.map(|t| (t.offset.0, t.rotation.0, t.scale.0, t.tex_coord));
+                let tex_coord = tt.and_then(|t| t.3).unwrap_or(n.tex_coord());
+                let r = self.texture(
+                    n.texture(),
+                    tex_coord,
+                    None,
+                    ColourSpace::Linear,
+                    n.scale(),
+                    &format!("{at}.normalTexture"),
+                )?;
+                r.map(|mut r| {
+                    if let Some((o, rot, s, _)) = tt {
+                        r.transform = UvTransform::new(o, rot, s);
+                    }
+                    r
+                })
+            }
+            None => None,
+        })
+    }
+
     fn read_materials(&mut self) -> Result<(), AssetError> {
         let finite = |x: f32| x.is_finite();
         for m in self.doc.materials() {
@@ -597,34 +679,10 @@ impl Reader<'_> {
                 ColourSpace::Srgb,
                 &format!("{at}.emissiveTexture"),
             )?;
-            let normal_texture = match m.normal_texture() {
-                Some(n) => {
-                    let transform = n.extension_value("KHR_texture_transform").and_then(|v| {
-                        serde_json::from_value::<gltf::json::extensions::texture::TextureTransform>(
-                            v.clone(),
-                        )
-                        .ok()
-                    });
-                    let tt = transform.map(|t| (t.offset.0, t.rotation.0, t.scale.0, t.tex_coord));
-                    let tex_coord = tt.and_then(|t| t.3).unwrap_or(n.tex_coord());
-                    let r = self.texture(
-                        n.texture(),
-                        tex_coord,
-                        None,
-                        ColourSpace::Linear,
-                        n.scale(),
-                        &format!("{at}.normalTexture"),
-                    )?;
-                    r.map(|mut r| {
-                        if let Some((o, rot, s, _)) = tt {
-                            r.transform = UvTransform::new(o, rot, s);
-                        }
-                        r
-                    })
-                }
-                None => None,
-            };
+            let normal_texture = self.normal_texture(&m, &at)?;
             let transmission_texture = self.transmission_texture(&m, &at)?;
+            let (specular_texture, specular_colour_texture) = self.specular_textures(&m, &at)?;
+            let (attenuation_colour, attenuation_distance) = self.attenuation(&m, &at)?;
             let strength = m.emissive_strength().unwrap_or(1.0);
             let e = m.emissive_factor();
             let alpha_mode = match m.alpha_mode() {
@@ -649,9 +707,13 @@ impl Reader<'_> {
                 ior: m.ior().unwrap_or(1.5),
                 specular: m.specular().map_or(1.0, |s| s.specular_factor()),
                 specular_colour: m.specular().map_or([1.0; 3], |s| s.specular_color_factor()),
+                specular_texture,
+                specular_colour_texture,
                 transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
                 transmission_texture,
                 thickness: m.volume().map_or(0.0, |v| v.thickness_factor()),
+                attenuation_colour,
+                attenuation_distance,
             };
             let scalars = [
                 material.metallic,

@@ -100,6 +100,32 @@ impl Model {
 /// The index of refraction of glass when the scene gives none (crown glass).
 pub const DEFAULT_IOR: f32 = 1.5;
 
+/// The `F0` of a dielectric of index `ior` against the outside (index
+/// 1): `((ior − 1) / (ior + 1))²`, exactly [`DIELECTRIC_F0`] (glTF's
+/// 0.04) for the default index [`DEFAULT_IOR`] (so materials of the
+/// default index compute what they did before indices reached the
+/// metallic-roughness model); 1 for an index of 0 (the specification's
+/// specular-glossiness conversion).
+#[inline]
+pub fn f0_of_ior(ior: f32) -> f32 {
+    if ior == DEFAULT_IOR {
+        return DIELECTRIC_F0;
+    }
+    let r = (ior - 1.0) / (ior + 1.0);
+    r * r
+}
+
+/// glTF's `F0` of a dielectric of the default index (1.5).
+pub const DIELECTRIC_F0: f32 = 0.04;
+
+/// The dielectric `F0` colour of `KHR_materials_specular` before its
+/// strength: `min(F0(ior) × colour, 1)` per channel ([`f0_of_ior`]).
+/// Times the strength it is the specification's `dielectric_f0`.
+#[inline]
+pub fn dielectric_f0(ior: f32, colour: Vec3) -> Vec3 {
+    (colour * f0_of_ior(ior)).min(Vec3::ONE)
+}
+
 /// The indices of refraction a scene file may give a glass material.
 /// Real media lie well inside: 1.0003 (air) to about 4 (germanium in the
 /// infrared); diamond is 2.42, and an index below 1 (a medium thinner than
@@ -138,6 +164,14 @@ pub struct Maps {
     /// The factor an [`emissive`](Self::emissive) texture multiplies
     /// (glTF's `emissiveFactor` × `KHR_materials_emissive_strength`).
     pub emissive_factor: Vec3,
+    /// [`Model::MetallicRoughness`], [`Model::Transmission`]: A multiplies
+    /// [`Material::specular`] (glTF's `KHR_materials_specular`
+    /// `specularTexture`, linear).
+    pub specular: Option<TextureRef>,
+    /// [`Model::MetallicRoughness`], [`Model::Transmission`]: RGB
+    /// multiplies [`Material::specular_colour`] (`specularColorTexture`,
+    /// sRGB-decoded).
+    pub specular_colour: Option<TextureRef>,
     /// A tangent-space normal texture (linear; its `scale` in
     /// [`TextureRef::scale`]) that bends the shading normal, on triangles
     /// with tangents ([`Texturing::tangents`](super::Texturing::tangents)).
@@ -151,6 +185,8 @@ impl Maps {
         self.base_colour.is_none()
             && self.metallic_roughness.is_none()
             && self.transmission.is_none()
+            && self.specular.is_none()
+            && self.specular_colour.is_none()
     }
 }
 
@@ -205,6 +241,25 @@ pub struct Material {
     /// without `KHR_materials_volume`, or a thickness of 0) rather than
     /// the boundary of a solid.
     pub thin: bool,
+    /// `KHR_materials_specular`'s strength of the dielectric specular
+    /// reflection of [`Model::MetallicRoughness`] and
+    /// [`Model::Transmission`], in `[0, 1]` (1 by default): the dielectric
+    /// `F90`, and a factor of its `F0`.
+    pub specular: f32,
+    /// `KHR_materials_specular`'s colour of the dielectric `F0`
+    /// (linear RGB, non-negative; white by default): `F0 = min(F0(ior) ×
+    /// colour, 1) × specular` ([`dielectric_f0`]).
+    pub specular_colour: Vec3,
+    /// `KHR_materials_volume`'s attenuation colour of a solid
+    /// [`Model::Transmission`] or [`Model::Glass`] medium (linear RGB in
+    /// `[0, 1]`): what white light becomes after
+    /// [`attenuation_distance`](Self::attenuation_distance) inside it
+    /// (white by default: no absorption).
+    pub attenuation_colour: Vec3,
+    /// The distance (scene units) over which light inside the medium
+    /// turns [`attenuation_colour`](Self::attenuation_colour); positive,
+    /// infinite by default (no absorption).
+    pub attenuation_distance: f32,
     /// Textured parameters (none by default).
     pub maps: Maps,
     /// Where the surface is there ([`Coverage::Opaque`] by default).
@@ -230,6 +285,10 @@ impl Material {
             roughness: 1.0,
             transmission: 0.0,
             thin: false,
+            specular: 1.0,
+            specular_colour: Vec3::ONE,
+            attenuation_colour: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
             maps: Maps::default(),
             coverage: Coverage::Opaque,
             opacity: 1.0,
@@ -252,6 +311,20 @@ impl Material {
                 Vec3::new(self.ior, self.transmission, f32::from(u8::from(self.thin))),
             ],
         };
+        // (Materials of the default specular, index and no absorption
+        // hash as before those existed.)
+        let specular_model = matches!(self.model, Model::MetallicRoughness | Model::Transmission);
+        if specular_model && (self.specular != 1.0 || self.specular_colour != Vec3::ONE) {
+            words.push(Vec3::new(9.0, self.specular, 0.0));
+            words.push(self.specular_colour);
+        }
+        if self.model == Model::MetallicRoughness && self.ior != DEFAULT_IOR {
+            words.push(Vec3::new(10.0, self.ior, 0.0));
+        }
+        if self.absorbs() {
+            words.push(Vec3::new(11.0, self.attenuation_distance, 0.0));
+            words.push(self.attenuation_colour);
+        }
         // (Opaque materials hash as before coverage existed.)
         match self.coverage {
             Coverage::Opaque => {}
@@ -265,6 +338,8 @@ impl Material {
             &self.maps.emissive,
             &self.maps.normal,
             &self.maps.transmission,
+            &self.maps.specular,
+            &self.maps.specular_colour,
         ]
         .into_iter()
         .enumerate()
@@ -280,6 +355,36 @@ impl Material {
             words.push(Vec3::new(7.0, n.scale, 0.0));
         }
         words
+    }
+
+    /// Whether light travelling inside the material is absorbed: a solid
+    /// ([`Model::Glass`], or [`Model::Transmission`] not thin-walled) with
+    /// a finite [`attenuation_distance`](Self::attenuation_distance) and
+    /// an [`attenuation_colour`](Self::attenuation_colour) other than
+    /// white.
+    pub fn absorbs(&self) -> bool {
+        let solid = match self.model {
+            Model::Glass => true,
+            Model::Transmission => !self.thin,
+            _ => false,
+        };
+        solid && self.attenuation_distance.is_finite() && self.attenuation_colour != Vec3::ONE
+    }
+
+    /// The transmittance of a straight path of length `t` inside the
+    /// material, per RGB channel (Beer–Lambert, as `KHR_materials_volume`
+    /// defines it): `attenuation_colour^(t / attenuation_distance)`, i.e.
+    /// `exp(−σ t)` with `σ = −ln(colour) / distance`; `None` where the
+    /// material does not absorb ([`absorbs`](Self::absorbs)). A channel
+    /// of colour 0 is black for any `t > 0`.
+    #[inline]
+    pub fn transmittance(&self, t: f32) -> Option<[f32; 3]> {
+        if !self.absorbs() {
+            return None;
+        }
+        let x = t / self.attenuation_distance;
+        let c = self.attenuation_colour;
+        Some([c.x.powf(x), c.y.powf(x), c.z.powf(x)])
     }
 
     /// Whether the material emits any light.

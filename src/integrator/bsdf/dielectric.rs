@@ -78,6 +78,43 @@ pub struct Params<R: Real> {
     pub eta: R,
     /// Whether the surface is thin-walled (else a solid's boundary).
     pub thin: R::Mask,
+    /// `KHR_materials_specular` on the interface: `(F0(ior), F0 colour,
+    /// strength)` — the index's own normal-incidence reflectance
+    /// ([`f0_of_ior`](crate::scene::material::f0_of_ior) of the
+    /// material's index), the specification's `min(F0(ior) ×
+    /// specularColor, 1)` and its `specular`. The reflectance is the
+    /// index's exact Fresnel term `F` remapped so that it starts from the
+    /// colour's `F0` and still reaches 1 at grazing angles, times the
+    /// strength ([`Params::reflectance`]); transmission takes
+    /// `1 − max(reflectance)`. With the default (`F0 colour = F0(ior)`,
+    /// strength 1) the reflectance is `F` itself, bit for bit.
+    pub specular: (R, V3<R>, R),
+}
+
+impl<R: Real> Params<R> {
+    /// The default specular of an index (`KHR_materials_specular`
+    /// absent): the reflectance is the exact Fresnel term.
+    #[inline(always)]
+    pub fn plain_specular() -> (R, V3<R>, R) {
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
+        (zero, V3::new(zero, zero, zero), one)
+    }
+
+    /// `(reflectance per channel, 1 − its largest channel)` of the
+    /// interface where its exact Fresnel term is `f`: with `F0 = F0(ior)`,
+    /// `s = (f − F0) / (1 − F0)` (0 at normal incidence, 1 at grazing and
+    /// beyond the critical angle), the specification's `fresnel_mix`
+    /// with the shape of the exact term: `strength × (F0c + (1 − F0c) s)`
+    /// `= strength × (f + (F0c − F0)(1 − s))` per channel `c`.
+    #[inline(always)]
+    pub fn reflectance(&self, f: R) -> (V3<R>, R) {
+        let one = R::splat(1.0);
+        let (f0, c, strength) = self.specular;
+        let rest = one - (f - f0) / (one - f0);
+        let r = |c: R| (c - f0).mul_add(rest, f) * strength;
+        let rgb = V3::new(r(c.x), r(c.y), r(c.z));
+        (rgb, one - rgb.x.max(rgb.y).max(rgb.z))
+    }
 }
 
 impl<R: Real> Params<R> {
@@ -146,16 +183,20 @@ fn eval_pdf<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, p: &Params<R>) -> (V3<R>, R
     let jac = im.abs() / denom2;
     let t_value = dg * R::splat(4.0) * im.abs() * om / denom2 * inv_eta * inv_eta;
     let t_pdf = vis * R::splat(4.0) * om * jac;
-    let (value, density, weight) = (
+    let (rgb, t_weight) = p.reflectance(fr);
+    let (value, density) = (
         R::select(solid_t, t_value, dg),
         R::select(solid_t, t_pdf, vis),
-        R::select(above, fr, one - fr),
     );
     let lobe = R::select(above, pr, one - pr);
-    let f = R::select(valid, value * weight, zero);
     let tint = V3::select(above, V3::new(one, one, one), p.tint);
     let pdf = R::select(valid, density * lobe, zero);
-    (tint.scale(f), pdf)
+    let weight = |c: R| R::select(above, c, t_weight);
+    let f = |c: R| R::select(valid, value * weight(c), zero);
+    (
+        V3::new(tint.x * f(rgb.x), tint.y * f(rgb.y), tint.z * f(rgb.z)),
+        pdf,
+    )
 }
 
 /// The BSDF value `f(wo, wi)` per RGB channel (without the cosine) of the
@@ -191,9 +232,19 @@ pub fn sample<R: Real>(n: V3<R>, wo: V3<R>, p: &Params<R>, u: [R; 2]) -> BsdfSam
     let straight = refract(wo, n, co, inv_eta, cos_t);
     let through = V3::select(p.thin, -wo, straight);
     let scale = R::select(p.thin, one, inv_eta * inv_eta);
+    // The reflectance over the probability of each choice (1 by
+    // default): `F` chose reflection, the exact term.
+    let (rgb, t_weight) = p.reflectance(fc);
+    let chosen = zero.lt(fc) & fc.le(one);
+    let r_weight = V3::select(
+        chosen,
+        V3::new(rgb.x / fc, rgb.y / fc, rgb.z / fc),
+        V3::new(one, one, one),
+    );
+    let t_ratio = R::select(fc.lt(one), t_weight / (one - fc), one);
     let smooth = BsdfSample {
         wi: V3::select(smooth_r, mirror, through),
-        f: V3::select(smooth_r, V3::new(one, one, one), p.tint.scale(scale)),
+        f: V3::select(smooth_r, r_weight, p.tint.scale(scale).scale(t_ratio)),
         cos: one,
         pdf: one,
         delta: R::splat_mask(true),

@@ -20,6 +20,18 @@
 //! [`metal`]), so the specular weight of a visible-normal sample is
 //! `F · G1(wi)`.
 //!
+//! **`KHR_materials_specular`** changes the dielectric Fresnel term:
+//! `dielectric_f0 = min(F0(ior) × specularColor, 1) × specular` per
+//! channel ([`Params::f0`]), `dielectric_f90 = specular` ([`Params::f90`]),
+//! `F_d = F0_d + (F90_d − F0_d)(1 − |V·H|)⁵`, and the diffuse lobe is
+//! weighed by `1 − max_value(F_d)` (the extension's `fresnel_mix`); the
+//! metal part is unchanged. Schlick's term is linear in `F0` and `F90`,
+//! so the material is still one Fresnel term, of
+//! `F0 = mix(F0_d, base, metallic)` and `F90 = mix(F90_d, 1, metallic)`:
+//! `f = (1 − metallic)(1 − max F_d) base/π + F · D · V`. With the default
+//! (`F0_d` = 0.04, `F90_d` = 1: [`Params::new`]) every operation is the
+//! one of the plain Appendix B, bit for bit.
+//!
 //! **Energy.** The Appendix weights the diffuse lobe by `1 − F(V·H)`, and
 //! `V·H` depends on the light direction: averaged over the hemisphere it is
 //! close to `F0`, while the specular lobe reflects `F` near grazing. So the
@@ -46,8 +58,9 @@
 use super::{BsdfSample, diffuse, metal};
 use crate::math::{Real, V3};
 
-/// `F0` of the dielectric part (an index of refraction of 1.5).
-pub const DIELECTRIC_F0: f32 = 0.04;
+/// `F0` of the dielectric part at the default index of refraction (1.5)
+/// and specular ([`Params::new`]).
+pub use crate::scene::material::DIELECTRIC_F0;
 
 /// The parameters of the material at a point, lane by lane.
 #[derive(Clone, Copy, Debug)]
@@ -58,6 +71,30 @@ pub struct Params<R: Real> {
     pub metallic: R,
     /// The GGX α: the glTF roughness squared.
     pub alpha: R,
+    /// The dielectric part's `F0` per channel (`KHR_materials_specular`'s
+    /// `dielectric_f0 = min(F0(ior) × specularColor, 1) × specular`;
+    /// [`DIELECTRIC_F0`] by default).
+    pub f0: V3<R>,
+    /// The dielectric part's `F90` (`KHR_materials_specular`'s
+    /// `specular`; 1 by default).
+    pub f90: R,
+}
+
+impl<R: Real> Params<R> {
+    /// The parameters of base colour `base`, metalness `metallic` and
+    /// GGX `alpha`, with the default dielectric Fresnel (`F0` 0.04,
+    /// `F90` 1: no `KHR_materials_specular`, index 1.5).
+    #[inline(always)]
+    pub fn new(base: V3<R>, metallic: R, alpha: R) -> Self {
+        let f0 = R::splat(DIELECTRIC_F0);
+        Self {
+            base,
+            metallic,
+            alpha,
+            f0: V3::new(f0, f0, f0),
+            f90: R::splat(1.0),
+        }
+    }
 }
 
 /// `(1 − c)⁵` for `c = |V·H|` (clamped to `[0, 1]`).
@@ -68,20 +105,35 @@ fn schlick_weight<R: Real>(c: R) -> R {
     t2 * t2 * t
 }
 
-/// `F0 = mix(0.04, base, metallic)` per channel.
+/// `(F0, F90)` of the material: `F0 = mix(dielectric F0, base, metallic)`
+/// per channel, `F90 = mix(dielectric F90, 1, metallic)` (Schlick's
+/// Fresnel is linear in both, so this is the mix of the dielectric and
+/// metal Fresnel terms). With the default `F90` of 1 it is exactly 1.
 #[inline(always)]
-fn f0<R: Real>(p: &Params<R>) -> V3<R> {
-    let d = R::splat(DIELECTRIC_F0);
-    let mix = |b: R| (b - d).mul_add(p.metallic, d);
-    V3::new(mix(p.base.x), mix(p.base.y), mix(p.base.z))
+fn f0_f90<R: Real>(p: &Params<R>) -> (V3<R>, R) {
+    let mix = |b: R, d: R| (b - d).mul_add(p.metallic, d);
+    let f0 = V3::new(
+        mix(p.base.x, p.f0.x),
+        mix(p.base.y, p.f0.y),
+        mix(p.base.z, p.f0.z),
+    );
+    (f0, mix(R::splat(1.0), p.f90))
 }
 
-/// `F0 + (1 − F0) w` per channel.
+/// `F0 + (F90 − F0) w` per channel.
 #[inline(always)]
-fn schlick<R: Real>(f0: V3<R>, w: R) -> V3<R> {
-    let one = R::splat(1.0);
-    let s = |f: R| (one - f).mul_add(w, f);
+fn schlick<R: Real>((f0, f90): (V3<R>, R), w: R) -> V3<R> {
+    let s = |f: R| (f90 - f).mul_add(w, f);
     V3::new(s(f0.x), s(f0.y), s(f0.z))
+}
+
+/// The largest channel of the dielectric Fresnel term
+/// `F0 + (F90 − F0) w` (the specification's `max_value`, which weighs the
+/// diffuse lobe): the channel of the largest `F0`, as `w ≤ 1`.
+#[inline(always)]
+fn dielectric_max<R: Real>(p: &Params<R>, w: R) -> R {
+    let f0 = p.f0.x.max(p.f0.y).max(p.f0.z);
+    (p.f90 - f0).mul_add(w, f0)
 }
 
 /// The BRDF value `f(wo, wi)` per RGB channel (without the cosine), or 0
@@ -103,8 +155,8 @@ pub fn eval<R: Real>(n: V3<R>, wo: V3<R>, wi: V3<R>, p: &Params<R>) -> V3<R> {
     let spec = R::select(valid, d * vis, zero);
     let vh = wo.dot(wi).mul_add(half, half).max(zero).sqrt();
     let w = schlick_weight(vh);
-    let f = schlick(f0(p), w);
-    let fd = (one - R::splat(DIELECTRIC_F0)).mul_add(w, R::splat(DIELECTRIC_F0));
+    let f = schlick(f0_f90(p), w);
+    let fd = dielectric_max(p, w);
     let kd = R::select(
         valid,
         (one - p.metallic) * (one - fd) * R::splat(std::f32::consts::FRAC_1_PI),
@@ -126,9 +178,9 @@ pub fn specular_probability<R: Real>(co: R, p: &Params<R>) -> R {
     let (zero, one) = (R::splat(0.0), R::splat(1.0));
     let third = R::splat(1.0 / 3.0);
     let w = schlick_weight(co);
-    let f = schlick(f0(p), w);
+    let f = schlick(f0_f90(p), w);
     let s = (f.x + f.y + f.z) * third;
-    let fd = (one - R::splat(DIELECTRIC_F0)).mul_add(w, R::splat(DIELECTRIC_F0));
+    let fd = dielectric_max(p, w);
     let d = (one - p.metallic) * (one - fd) * (p.base.x + p.base.y + p.base.z) * third;
     let d = d.max(zero);
     let sum = s + d;

@@ -12,6 +12,7 @@ use super::metallic_roughness::{self as mr, Params};
 use super::transmission as tr;
 use super::{BsdfSample, diffuse, facing, glass, leaks, metal, mirror};
 use crate::math::{Real, V3};
+use crate::scene::material::dielectric_f0;
 use crate::scene::{Material, Model};
 use std::f32::consts::PI;
 
@@ -34,6 +35,13 @@ pub struct Surface<R: Real> {
     /// 1 where the surface is thin-walled, 0 where it bounds a solid
     /// (transmission).
     pub thin: R,
+    /// `KHR_materials_specular`'s strength (metallic-roughness,
+    /// transmission; 1 by default).
+    pub specular: R,
+    /// The dielectric `F0` colour before the strength,
+    /// `min(F0(ior) × specularColor, 1)` ([`dielectric_f0`]; 0.04 by
+    /// default) (metallic-roughness, transmission).
+    pub f0: V3<R>,
 }
 
 impl Surface<f32> {
@@ -60,6 +68,7 @@ impl Surface<f32> {
             Model::Transmission => (material.transmission, f32::from(u8::from(material.thin))),
             _ => (0.0, 0.0),
         };
+        let (specular, f0) = Self::specular_of(material, 1.0, glam::Vec3::ONE);
         Surface {
             model: material.model,
             tint: V3::from(tint),
@@ -68,6 +77,24 @@ impl Surface<f32> {
             metallic,
             transmission,
             thin,
+            specular,
+            f0,
+        }
+    }
+
+    /// `(specular, F0 colour)` of `material` where its specular textures
+    /// read `s` (A of `specularTexture`) and `c` (RGB of
+    /// `specularColorTexture`): the factors times the texture values, the
+    /// colour into [`dielectric_f0`] of the material's index; the
+    /// defaults (1, 0.04) for models without a dielectric specular.
+    #[inline]
+    fn specular_of(material: &Material, s: f32, c: glam::Vec3) -> (f32, V3<f32>) {
+        match material.model {
+            Model::MetallicRoughness | Model::Transmission => (
+                material.specular * s,
+                V3::from(dielectric_f0(material.ior, material.specular_colour * c)),
+            ),
+            _ => (1.0, V3::from(dielectric_f0(1.5, glam::Vec3::ONE))),
         }
     }
 
@@ -76,12 +103,19 @@ impl Surface<f32> {
     /// transmittance: base colour texture × vertex colour) and `(m, r)`
     /// (what multiply a metallic-roughness material's metalness and
     /// roughness) and `t` (what multiplies a transmission material's
-    /// transmission factor). With white and ones it is [`Surface::of`]'s
-    /// surface up to rounding (not bit for bit: constant materials use
-    /// [`Surface::of`]).
+    /// transmission factor) and `(specular, specular_colour)` (what
+    /// multiply `KHR_materials_specular`'s strength and colour). With
+    /// white and ones it is [`Surface::of`]'s surface up to rounding (not
+    /// bit for bit: constant materials use [`Surface::of`]).
     #[inline]
-    pub fn textured(material: &Material, colour: glam::Vec3, (m, r, t): (f32, f32, f32)) -> Self {
+    pub fn textured(
+        material: &Material,
+        colour: glam::Vec3,
+        (m, r, t): (f32, f32, f32),
+        (specular, specular_colour): (f32, glam::Vec3),
+    ) -> Self {
         let mut s = Self::of(material);
+        (s.specular, s.f0) = Self::specular_of(material, specular, specular_colour);
         let tint = match material.model {
             Model::Diffuse => material.reflectance * colour / PI,
             Model::Mirror | Model::Metal | Model::MetallicRoughness | Model::Transmission => {
@@ -109,6 +143,7 @@ impl<R: Real> Surface<R> {
     /// A diffuse surface of BRDF `f = ρ/π`.
     #[inline(always)]
     pub fn diffuse(f: V3<R>) -> Self {
+        let f0 = R::splat(super::metallic_roughness::DIELECTRIC_F0);
         Self {
             model: Model::Diffuse,
             tint: f,
@@ -117,6 +152,8 @@ impl<R: Real> Surface<R> {
             metallic: R::splat(0.0),
             transmission: R::splat(0.0),
             thin: R::splat(0.0),
+            specular: R::splat(1.0),
+            f0: V3::new(f0, f0, f0),
         }
     }
 
@@ -127,6 +164,8 @@ impl<R: Real> Surface<R> {
             base: self.tint,
             metallic: self.metallic,
             alpha: self.alpha,
+            f0: self.f0.scale(self.specular),
+            f90: self.specular,
         }
     }
 
@@ -142,6 +181,8 @@ impl<R: Real> Surface<R> {
             transmission: self.transmission,
             thin: R::splat(0.5).lt(self.thin),
             front,
+            f0: self.f0,
+            specular: self.specular,
         }
     }
 

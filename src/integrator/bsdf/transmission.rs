@@ -65,6 +65,22 @@ pub struct Params<R: Real> {
     pub thin: R::Mask,
     /// Whether `wo` is on the geometric front (outside) of the surface.
     pub front: R::Mask,
+    /// `KHR_materials_specular`'s `min(F0(ior) × specularColor, 1)`
+    /// (the dielectric `F0` colour before its strength;
+    /// [`dielectric_f0`](crate::scene::material::dielectric_f0)).
+    pub f0: V3<R>,
+    /// `KHR_materials_specular`'s strength `specular` (1 by default).
+    pub specular: R,
+}
+
+/// [`f0_of_ior`](crate::scene::material::f0_of_ior), lane by lane, with
+/// its bits.
+#[inline(always)]
+pub fn f0_of_ior<R: Real>(ior: R) -> R {
+    let one = R::splat(1.0);
+    let r = (ior - one) / (ior + one);
+    let default = ior.eq(R::splat(crate::scene::material::DEFAULT_IOR));
+    R::select(default, R::splat(mr::DIELECTRIC_F0), r * r)
 }
 
 impl<R: Real> Params<R> {
@@ -83,12 +99,15 @@ impl<R: Real> Params<R> {
                 base: self.base,
                 metallic,
                 alpha: self.alpha,
+                f0: self.f0.scale(self.specular),
+                f90: self.specular,
             },
             dielectric::Params {
                 tint: self.base,
                 alpha: self.alpha,
                 eta,
                 thin: self.thin,
+                specular: (f0_of_ior(self.ior), self.f0, self.specular),
             },
         )
     }

@@ -4,8 +4,10 @@
 //! path queue (one plain column per field), then once per depth:
 //!
 //! 1. *intersect*: the closest hit of every ray (8 triangles at a time);
-//! 2. *shade*: the emission each path sees (and, when the render asks for
-//!    AOVs, what they record at the hit: [`crate::integrator::aov`]);
+//! 2. *shade*: the absorption of a path that crossed an absorbing solid
+//!    (`KHR_materials_volume`'s attenuation), the emission each path sees
+//!    (and, when the render asks for AOVs, what they record at the hit:
+//!    [`crate::integrator::aov`]);
 //! 3. *retire*: paths that escaped, reached the maximum depth or lost at
 //!    Russian roulette go into the film (with their AOVs) and leave the
 //!    queue;
@@ -178,6 +180,7 @@ impl WavefrontEngine {
             counters.rays += queue.len() as u64;
             time.time(Stage::Intersect, || intersect::intersect(queue, &ctx));
             time.time(Stage::Shade, || {
+                shade::absorb(queue, ctx.tables);
                 shade::shade(queue, &ctx);
                 if ctx.lights.sees_escapes() {
                     shade::shade_escaped(queue, &ctx, depth);

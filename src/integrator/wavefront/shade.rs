@@ -38,6 +38,32 @@ pub fn shade<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>) {
     }
 }
 
+/// For every path whose ray crossed an absorbing solid from inside (it
+/// hit the back of a material that [`absorbs`](crate::scene::Material::absorbs)):
+/// throughput ×= the segment's transmittance
+/// ([`Tables::transmittance`], the reference tracer's factor, before
+/// anything else at the vertex). Nothing in scenes without absorption.
+pub fn absorb<P>(queue: &mut PathQueue<P>, tables: &Tables) {
+    if !tables.has_absorption() {
+        return;
+    }
+    let n = queue.len();
+    for i in 0..n {
+        let hit = queue.hit[i];
+        if hit == NO_HIT {
+            continue;
+        }
+        let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
+        let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
+        let s = tables.surface(hit as usize, (o, d), queue.t[i]);
+        if let Some(a) = tables.transmittance(&s, queue.t[i]) {
+            for (c, a) in queue.beta.iter_mut().zip(a) {
+                c[i] *= a;
+            }
+        }
+    }
+}
+
 /// For every path whose ray left the scene, in a scene with an
 /// environment: radiance += throughput × the environment's radiance ×
 /// its MIS weight ([`escaped`]); camera rays (depth `depth` 0) see it only
