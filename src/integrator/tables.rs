@@ -529,6 +529,16 @@ impl Tables {
         self.absorbing
     }
 
+    /// Whether the material of primitive `prim` absorbs light inside it
+    /// ([`Material::absorbs`]): the cheap test before
+    /// [`transmittance`](Self::transmittance) needs the hit's surface.
+    #[inline]
+    pub fn absorbs(&self, prim: u32) -> bool {
+        self.absorbing
+            && (self.material_of.get(prim as usize))
+                .is_some_and(|&m| self.materials[m as usize].absorbs())
+    }
+
     /// What reaches the hit `hit` of a ray from inside the medium it
     /// travelled through: where the hit is on the back of a material that
     /// absorbs ([`Material::absorbs`]: the ray crossed its solid from the

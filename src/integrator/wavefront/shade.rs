@@ -50,7 +50,7 @@ pub fn absorb<P>(queue: &mut PathQueue<P>, tables: &Tables) {
     let n = queue.len();
     for i in 0..n {
         let hit = queue.hit[i];
-        if hit == NO_HIT {
+        if hit == NO_HIT || !tables.absorbs(hit) {
             continue;
         }
         let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
