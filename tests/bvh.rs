@@ -603,7 +603,7 @@ fn check_prims(tris: &[TriangleEdges], spheres: &[Sphere], rays: usize, seed: u6
     let bvhs = builds_prims(tris, spheres);
     for b in &bvhs {
         assert_eq!(b.triangle_count(), tris.len());
-        assert_eq!(b.sphere_count(), spheres.len());
+        assert_eq!(b.count_of::<Sphere>(), spheres.len());
         assert_eq!(b.prim_count(), tris.len() + spheres.len());
     }
     let (lo, hi) = prim_bounds(tris, spheres);

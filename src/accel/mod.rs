@@ -1,40 +1,40 @@
 //! Acceleration: which surface a ray hits first, built from the scene.
 //!
+//! - [`shape`]: the shape kinds behind one trait ([`shape::Shape`]: box,
+//!   kernels, the surface at a hit, area sampling), and the one list of
+//!   the kinds there are ([`shape::Kinds`]);
 //! - [`triangle`]: Möller–Trumbore, written once for scalar and SIMD
-//!   code, and the 8- and 16-triangle packs;
-//! - [`bvh`]: the 8-wide bounding volume hierarchy over the packs:
-//!   closest hits and occlusion;
-//! - [`simd`]: the SIMD width of the kernels (8 lanes, or 16 where the CPU
-//!   has AVX-512), chosen at run time;
+//!   code, and the 8- and 16-triangle packs (the first kind);
 //! - [`sphere`]: robust ray/sphere intersection, scalar and 8 or 16
-//!   spheres at once (the hierarchy's second primitive kind), and the
-//!   brute-force closest hit over triangles and spheres.
+//!   spheres at once (the second kind);
+//! - [`bvh`]: the 8-wide bounding volume hierarchy over the packs of
+//!   every kind: closest hits and occlusion;
+//! - [`simd`]: the SIMD width of the kernels (8 lanes, or 16 where the CPU
+//!   has AVX-512), chosen at run time.
 
 pub mod bvh;
+pub mod shape;
 pub mod simd;
 pub mod sphere;
 pub mod triangle;
 
 use crate::scene::Scene;
+use shape::Shape;
 use triangle::TriangleEdges;
 
 /// The scene's triangles as the intersection kernels want them, in index
 /// order.
 pub fn scene_triangles(scene: &Scene) -> Vec<TriangleEdges> {
-    scene.triangles.iter().map(TriangleEdges::from).collect()
+    TriangleEdges::in_scene(scene)
 }
 
 /// The scene's spheres as the intersection kernels want them, in index
 /// order.
 pub fn scene_spheres(scene: &Scene) -> Vec<sphere::Sphere> {
-    let sphere = |s: &crate::scene::Sphere| sphere::Sphere {
-        center: s.center,
-        radius: s.radius,
-    };
-    scene.spheres.iter().map(sphere).collect()
+    sphere::Sphere::in_scene(scene)
 }
 
-/// The hierarchy over the scene's triangles and spheres.
+/// The hierarchy over the scene's primitives of every kind.
 pub fn scene_bvh(scene: &Scene, options: &bvh::BvhOptions) -> bvh::Bvh {
-    bvh::Bvh::build_prims(&scene_triangles(scene), &scene_spheres(scene), options)
+    bvh::Bvh::build_shapes(&shape::OwnedShapes::of_scene(scene).as_shapes(), options)
 }

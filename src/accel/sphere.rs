@@ -27,12 +27,14 @@
 //! near root of a few ulps of `r` around 0: callers pass a `t_min` above
 //! that noise (as for triangles), or the ray hits the sphere it left.
 
+use crate::accel::shape::{Shape, ShapePack, Shapes};
 #[cfg(target_arch = "x86_64")]
 use crate::accel::simd::F32x16;
 use crate::accel::simd::{Lanes, SimdWidth};
-use crate::accel::triangle::{Hit, PackHits, TriangleEdges, closest_hit_brute_force};
+use crate::accel::triangle::{Hit, PackHits, TriangleEdges};
 use crate::math::{Real, V3, Vec3x8};
-use glam::Vec3;
+use crate::scene::Scene;
+use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
 /// The distance `t` along the ray `o + t·d` (`d` need not be unit, but not
@@ -310,17 +312,73 @@ pub fn closest_hit_brute_force_prims(
     t_min: f32,
     t_max: f32,
 ) -> Option<Hit> {
-    let mut best = closest_hit_brute_force(tris, o, d, t_min, t_max);
-    let (ov, dv) = (V3::from(o), V3::from(d));
-    for (j, s) in spheres.iter().enumerate() {
-        let limit = best.map_or(t_max, |h| h.t);
-        let (hit, t) = intersect_sphere(ov, dv, V3::from(s.center), s.radius, t_min);
-        if hit && t < limit {
-            best = Some(Hit {
-                triangle: (tris.len() + j) as u32,
-                t,
-            });
-        }
+    let shapes = Shapes {
+        triangles: tris,
+        spheres,
+    };
+    crate::accel::shape::closest_hit_brute_force_shapes(&shapes, o, d, t_min, t_max)
+}
+
+impl<R: Lanes> ShapePack<R> for SpherePack<R> {
+    #[inline(always)]
+    fn intersect<const IN_INDEX_ORDER: bool>(
+        &self,
+        o: &V3<R>,
+        d: &V3<R>,
+        t_min: R,
+        best: &mut PackHits<R>,
+    ) {
+        SpherePack::intersect::<IN_INDEX_ORDER>(self, o, d, t_min, best)
     }
-    best
+
+    #[inline(always)]
+    fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
+        SpherePack::occludes(self, o, d, t_min, t_max)
+    }
+}
+
+/// Analytic spheres: the second kind (their primitive indices follow the
+/// triangles').
+impl Shape for Sphere {
+    type Pack<R: Lanes> = SpherePack<R>;
+    /// Its center (the normal at a hit is the radius through it).
+    type Surface = V3<f32>;
+
+    fn in_scene(scene: &Scene) -> Vec<Self> {
+        let sphere = |s: &crate::scene::Sphere| Sphere::new(s.center, s.radius);
+        scene.spheres.iter().map(sphere).collect()
+    }
+
+    fn materials(scene: &Scene) -> Vec<u32> {
+        scene.spheres.iter().map(|s| s.material).collect()
+    }
+
+    #[inline]
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        let (lo, hi) = Sphere::bounds(self)?;
+        Some((lo.into(), hi.into()))
+    }
+
+    fn pack<R: Lanes>(shapes: &[(u32, Self)]) -> SpherePack<R> {
+        SpherePack::pack(shapes)
+    }
+
+    #[inline(always)]
+    fn intersect(&self, o: V3<f32>, d: V3<f32>, t_min: f32) -> (bool, f32) {
+        intersect_sphere(o, d, V3::from(self.center), self.radius, t_min)
+    }
+
+    fn surfaces(scene: &Scene) -> Vec<V3<f32>> {
+        scene.spheres.iter().map(|s| V3::from(s.center)).collect()
+    }
+
+    #[inline(always)]
+    fn flat_normal(_center: &V3<f32>) -> Option<Vec3> {
+        None
+    }
+
+    #[inline(always)]
+    fn front_normal(center: &V3<f32>, o: V3<f32>, d: V3<f32>, t: f32) -> V3<f32> {
+        hit_normal(o, d, t, *center)
+    }
 }

@@ -6,10 +6,11 @@
 //! tested in, so every intersector — scalar brute force, 8-wide packs, a
 //! hierarchy — returns the same triangle and the same `t`, bit for bit.
 
+use crate::accel::shape::{Shape, ShapePack};
 use crate::accel::simd::Lanes;
 use crate::math::{Real, V3};
-use crate::scene::Triangle;
-use glam::Vec3;
+use crate::scene::{Scene, Triangle};
+use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
 /// A triangle as the intersection kernel wants it: one vertex, two edges
@@ -418,4 +419,70 @@ pub fn closest_hit_packs(
         p.intersect::<true>(&o8, &d8, t_min8, &mut best);
     }
     best.closest()
+}
+
+impl<R: Lanes> ShapePack<R> for TrianglePack<R> {
+    #[inline(always)]
+    fn intersect<const IN_INDEX_ORDER: bool>(
+        &self,
+        o: &V3<R>,
+        d: &V3<R>,
+        t_min: R,
+        best: &mut PackHits<R>,
+    ) {
+        TrianglePack::intersect::<IN_INDEX_ORDER>(self, o, d, t_min, best)
+    }
+
+    #[inline(always)]
+    fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
+        TrianglePack::occludes(self, o, d, t_min, t_max)
+    }
+}
+
+/// Triangles: the first kind (primitive `i` is triangle `i`).
+impl Shape for TriangleEdges {
+    type Pack<R: Lanes> = TrianglePack<R>;
+    /// Its front unit normal (the scene's [`Triangle::normal`]).
+    type Surface = Vec3;
+
+    fn in_scene(scene: &Scene) -> Vec<Self> {
+        scene.triangles.iter().map(TriangleEdges::from).collect()
+    }
+
+    fn materials(scene: &Scene) -> Vec<u32> {
+        scene.triangles.iter().map(|t| t.material).collect()
+    }
+
+    #[inline]
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        if !self.is_finite() {
+            return None;
+        }
+        let v0 = Vec3A::from(self.v0);
+        let (v1, v2) = (v0 + Vec3A::from(self.e1), v0 + Vec3A::from(self.e2));
+        Some((v0.min(v1).min(v2), v0.max(v1).max(v2)))
+    }
+
+    fn pack<R: Lanes>(shapes: &[(u32, Self)]) -> TrianglePack<R> {
+        TrianglePack::pack(shapes)
+    }
+
+    #[inline(always)]
+    fn intersect(&self, o: V3<f32>, d: V3<f32>, t_min: f32) -> (bool, f32) {
+        moller_trumbore(o, d, &V3Tri::from(self), t_min)
+    }
+
+    fn surfaces(scene: &Scene) -> Vec<Vec3> {
+        scene.triangles.iter().map(|t| t.normal).collect()
+    }
+
+    #[inline(always)]
+    fn flat_normal(normal: &Vec3) -> Option<Vec3> {
+        Some(*normal)
+    }
+
+    #[inline(always)]
+    fn front_normal(normal: &Vec3, _o: V3<f32>, _d: V3<f32>, _t: f32) -> V3<f32> {
+        V3::from(*normal)
+    }
 }

@@ -12,7 +12,7 @@
 //! pathological inputs) the build switches to median splits, which bounds
 //! the depth and so the traversal stack.
 
-use super::node::{Child, Node8, PrimKind};
+use super::node::{Child, MAX_KINDS, Node8};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -35,8 +35,8 @@ pub struct BuildPrim {
     pub lo: Vec3,
     /// Maximum corner of the box (finite, `>= lo`).
     pub hi: Vec3,
-    /// What it is.
-    pub kind: PrimKind,
+    /// What it is: its kind's number ([`Kind::KIND`](crate::accel::shape::Kind::KIND)).
+    pub kind: u32,
     /// Its index among the primitives of its kind.
     pub index: u32,
 }
@@ -497,7 +497,7 @@ fn build_node(
 /// packs start in that kind's pack list.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct LeafRun {
-    pub kind: PrimKind,
+    pub kind: u32,
     pub start: usize,
     pub len: usize,
     pub first_pack: usize,
@@ -512,7 +512,7 @@ pub(crate) struct Topology {
     pub prims: Vec<Prim>,
     pub leaves: Vec<LeafRun>,
     /// Packs per kind.
-    pub pack_counts: [usize; PrimKind::MAX],
+    pub pack_counts: [usize; MAX_KINDS],
 }
 
 /// Boxes are padded by this share of the largest coordinate (see
@@ -551,7 +551,7 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
         root: Child::EMPTY,
         prims: Vec::new(),
         leaves: Vec::new(),
-        pack_counts: [0; PrimKind::MAX],
+        pack_counts: [0; MAX_KINDS],
     };
     if let Some(t) = &tree {
         topo.root = flatten(t, pad, &prims, params, &mut topo);
@@ -571,7 +571,7 @@ fn flatten(
 ) -> Child {
     match t {
         BuildNode::Leaf { start, len } => {
-            let kind = PrimKind::from_u32(prims[*start].kind as u32).expect("a known kind");
+            let kind = prims[*start].kind as u32;
             let n = len.div_ceil(params.lanes);
             debug_assert!((1..=params.max_leaf_packs).contains(&n));
             let first_pack = topo.pack_counts[kind as usize];

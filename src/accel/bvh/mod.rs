@@ -6,31 +6,34 @@
 //! Every inner node holds the boxes of up to eight children in
 //! structure-of-arrays form, so one ray is tested against all eight boxes
 //! with a handful of AVX2 instructions. A child reference is a node, a
-//! leaf, or nothing; a leaf's reference carries its primitive kind
-//! ([`PrimKind`]) and its run of 1 to [`MAX_LEAF_PACKS`] packs in that
-//! kind's pack list. Triangles come in packs of 8 or 16 ([`SimdWidth`]):
-//! the very SoA packs and the very Möller–Trumbore kernel of
-//! [`closest_hit_packs`](crate::accel::triangle::closest_hit_packs).
-//! Analytic spheres ([`Sphere`]) come in packs of the same width
-//! ([`SpherePack`]), tested by the robust
-//! kernel [`intersect_sphere`](crate::accel::sphere::intersect_sphere).
+//! leaf, or nothing; a leaf's reference carries its primitive kind (its
+//! number, [`Kind::KIND`](crate::accel::shape::Kind::KIND)) and its run of
+//! 1 to [`MAX_LEAF_PACKS`] packs in that kind's pack list. Every kind
+//! ([`Shape`]) comes in packs of 8 or 16 ([`SimdWidth`]), tested by its own
+//! kernel ([`ShapePack`](crate::accel::shape::ShapePack)): triangles by
+//! the very SoA packs and Möller–Trumbore kernel of
+//! [`closest_hit_packs`](crate::accel::triangle::closest_hit_packs),
+//! analytic spheres by the robust kernel
+//! [`intersect_sphere`](crate::accel::sphere::intersect_sphere).
 //!
 //! # Primitive indices
 //!
-//! [`Bvh::build_prims`] takes triangles and spheres; a hit names one
-//! primitive by one global index: triangle `i` is `i`, sphere `j` is
+//! [`Bvh::build_shapes`] takes the primitives of every kind ([`Shapes`]);
+//! a hit names one primitive by one global index, the kinds one after the
+//! other in the order of [`Kinds`]: triangle `i` is `i`, sphere `j` is
 //! `T + j` (`T` the number of triangles). [`Hit::triangle`] holds that
-//! index; with no spheres it is the triangle's own index, as ever.
+//! index; with triangles alone it is the triangle's own index, as ever.
 //!
 //! # Build
 //!
 //! [`build`]: binned SAH over the primitives' boxes, whatever their kind
 //! ([`BuildPrim`]); then each leaf's primitives are packed by their kind.
-//! Adding a kind (triangles and analytic spheres today) takes a
-//! [`PrimKind`] variant, its packs beside the others, their kernel
-//! (`intersect` and `occludes`, behind the walk's one `PackKernel` trait, so
-//! every query handles every kind with one body), and its arm where the
-//! walk dispatches on a leaf's kind.
+//! The hierarchy knows no kind by name: it keeps one [`Kinds`] of pack
+//! lists, fills it through [`Shape`] (`bounds`, `pack`), and the walk
+//! hands a leaf to its query by the leaf's kind number
+//! ([`Kinds::by_kind`]), so every query handles every kind with one body.
+//! (Triangles have two extras of their own, for small scenes: occluders
+//! tested first, and ray packets: `small`, `packet`.)
 //!
 //! # Queries
 //!
@@ -76,16 +79,18 @@ mod small;
 mod walk;
 
 pub use build::{BuildParams, BuildPrim, SAH_DEPTH_LIMIT};
-pub use node::PrimKind;
+pub use node::MAX_KINDS;
 pub use walk::{BATCH, WalkStats};
 
+use crate::accel::shape::{Family, Kind, Kinds, Make, Shape, Shapes, Slices, Visit, first_of};
 use crate::accel::simd::{Lanes, SimdWidth};
-use crate::accel::sphere::{Sphere, SpherePack};
-use crate::accel::triangle::{Hit, NO_PRIM, TriangleEdges, TrianglePack};
+use crate::accel::sphere::Sphere;
+use crate::accel::triangle::{Hit, NO_PRIM, TriangleEdges};
 use build::{Aabb, Prim};
 use glam::{Vec3, Vec3A};
 use node::{Child, Node8};
 use rayon::prelude::*;
+use std::marker::PhantomData;
 use std::time::Instant;
 use walk::{AnyHitKind, ClosestKind, CountingKind, Pack, QueryKind};
 use wide::f32x8;
@@ -103,8 +108,8 @@ const INTERLEAVE_BYTES: usize = 256 << 10;
 /// How to build a [`Bvh`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhOptions {
-    /// The lanes of the triangle and sphere packs (and of the kernels that
-    /// test them). A width the CPU lacks falls back to [`SimdWidth::W8`].
+    /// The lanes of the packs of every kind (and of the kernels that test
+    /// them). A width the CPU lacks falls back to [`SimdWidth::W8`].
     pub width: SimdWidth,
 }
 
@@ -138,26 +143,42 @@ impl LanesIn for F32x16 {
     }
 }
 
-/// The leaves' packs at one width.
+/// One kind's packs at one width.
 #[derive(Clone, Debug)]
-pub(crate) struct Packs<R: Lanes> {
-    /// Triangle packs, leaf after leaf.
-    pub triangles: Vec<Pack<TrianglePack<R>>>,
-    /// Triangles tested against every ray before the walk: those with a
-    /// non-finite coordinate (they have no box), and a scene's occluders
-    /// or large triangles when it has them in front of its tree (`small`).
-    pub unbounded: Vec<Pack<TrianglePack<R>>>,
-    /// Sphere packs, leaf after leaf (lanes carry global indices).
-    pub spheres: Vec<Pack<SpherePack<R>>>,
-    /// Spheres with a non-finite center, radius or box: as `unbounded`.
-    pub unbounded_spheres: Vec<Pack<SpherePack<R>>>,
+pub(crate) struct KindPacks<P> {
+    /// The packs of the tree's leaves, leaf after leaf (lanes carry global
+    /// primitive indices).
+    pub leaves: Vec<Pack<P>>,
+    /// Primitives tested against every ray before the walk: those with no
+    /// box (a non-finite coordinate), and a scene's occluders or large
+    /// triangles when it has them in front of its tree (`small`).
+    pub unbounded: Vec<Pack<P>>,
 }
+
+impl<P> Default for KindPacks<P> {
+    fn default() -> Self {
+        Self {
+            leaves: Vec::new(),
+            unbounded: Vec::new(),
+        }
+    }
+}
+
+/// [`KindPacks`] of every kind, at width `R`.
+pub(crate) struct PacksOf<R>(PhantomData<R>);
+
+impl<R: Lanes> Family for PacksOf<R> {
+    type Of<S: Shape> = KindPacks<S::Pack<R>>;
+}
+
+/// The leaves' packs at one width, kind by kind.
+pub(crate) type Packs<R> = Kinds<PacksOf<R>>;
 
 /// The packs of one kind's leaves: `topo`'s leaves of `kind`, each packed
 /// by `pack` from its run of prims, in parallel.
 fn pack_leaves<T: Copy + Send + Sync>(
     topo: &build::Topology,
-    kind: PrimKind,
+    kind: u32,
     lanes: usize,
     pack: impl Fn(&[Prim]) -> T + Sync,
 ) -> Vec<T> {
@@ -185,70 +206,94 @@ fn pack_leaves<T: Copy + Send + Sync>(
 }
 
 impl<R: Lanes> Packs<R> {
-    fn empty() -> Self {
-        Self {
-            triangles: Vec::new(),
-            unbounded: Vec::new(),
-            spheres: Vec::new(),
-            unbounded_spheres: Vec::new(),
+    /// Packs, leaves and unbounded ones, of every kind: `(count, bytes)`.
+    fn size(&self) -> (usize, usize) {
+        struct Size(usize, usize);
+        impl<R: Lanes> Visit<PacksOf<R>> for Size {
+            fn visit<S: Shape>(&mut self, k: &KindPacks<S::Pack<R>>) -> bool {
+                let n = k.leaves.len() + k.unbounded.len();
+                self.0 += n;
+                self.1 += n * size_of::<Pack<S::Pack<R>>>();
+                false
+            }
         }
+        let mut size = Size(0, 0);
+        self.any(&mut size);
+        (size.0, size.1)
     }
 
     fn count(&self) -> usize {
-        self.triangles.len()
-            + self.unbounded.len()
-            + self.spheres.len()
-            + self.unbounded_spheres.len()
+        self.size().0
     }
 
     fn bytes(&self) -> usize {
-        (self.triangles.len() + self.unbounded.len()) * size_of::<Pack<TrianglePack<R>>>()
-            + (self.spheres.len() + self.unbounded_spheres.len()) * size_of::<Pack<SpherePack<R>>>()
+        self.size().1
     }
 
-    /// Pack `topo`'s leaves and the unbounded primitives. A sphere prim's
-    /// index is its index among the spheres; its lanes carry
-    /// `tris.len()` more.
-    fn new(
-        topo: &build::Topology,
-        tris: &[TriangleEdges],
-        unbounded: &[(u32, TriangleEdges)],
-        spheres: &[Sphere],
-        unbounded_spheres: &[(u32, Sphere)],
-    ) -> Self {
-        let lanes = R::LANES;
-        let triangles = pack_leaves(topo, PrimKind::Triangle, lanes, |prims| {
-            let lanes: Vec<(u32, TriangleEdges)> = prims
-                .iter()
-                .map(|p| (p.index, tris[p.index as usize]))
-                .collect();
-            Pack(TrianglePack::pack(&lanes))
-        });
-        let offset = tris.len() as u32;
-        let sphere_packs = pack_leaves(topo, PrimKind::Sphere, lanes, |prims| {
-            let lanes: Vec<(u32, Sphere)> = prims
-                .iter()
-                .map(|p| (offset + p.index, spheres[p.index as usize]))
-                .collect();
-            Pack(SpherePack::pack(&lanes))
-        });
-        Self {
-            triangles,
-            unbounded: unbounded
-                .chunks(lanes)
-                .map(|c| Pack(TrianglePack::pack(c)))
-                .collect(),
-            spheres: sphere_packs,
-            unbounded_spheres: unbounded_spheres
-                .chunks(lanes)
-                .map(|c| Pack(SpherePack::pack(c)))
-                .collect(),
+    /// Whether some kind has primitives before the walk.
+    fn has_unbounded(&self) -> bool {
+        struct Any;
+        impl<R: Lanes> Visit<PacksOf<R>> for Any {
+            fn visit<S: Shape>(&mut self, k: &KindPacks<S::Pack<R>>) -> bool {
+                !k.unbounded.is_empty()
+            }
         }
+        self.any(&mut Any)
+    }
+
+    /// Pack `topo`'s leaves (a prim's index is its index among its kind's
+    /// primitives; its lanes carry its global index) and each kind's
+    /// unbounded primitives (global indices).
+    fn build(topo: &build::Topology, shapes: &Shapes<'_>, unbounded: &Unbounded) -> Self {
+        struct Packer<'a, 'b> {
+            topo: &'a build::Topology,
+            shapes: &'a Shapes<'b>,
+            unbounded: &'a Unbounded,
+            counts: [usize; Shapes::COUNT],
+        }
+        impl<R: Lanes> Make<PacksOf<R>> for Packer<'_, '_> {
+            fn make<S: Shape>(&mut self) -> KindPacks<S::Pack<R>> {
+                let list: &[S] = S::of(self.shapes);
+                let offset = first_of::<S>(&self.counts) as u32;
+                let leaves = pack_leaves(self.topo, S::KIND, R::LANES, |prims| {
+                    let lanes: Vec<(u32, S)> = prims
+                        .iter()
+                        .map(|p| (offset + p.index, list[p.index as usize]))
+                        .collect();
+                    Pack(S::pack(&lanes))
+                });
+                let unbounded: &Vec<(u32, S)> = S::of(self.unbounded);
+                KindPacks {
+                    leaves,
+                    unbounded: unbounded
+                        .chunks(R::LANES)
+                        .map(|c| Pack(S::pack(c)))
+                        .collect(),
+                }
+            }
+        }
+        Kinds::new(&mut Packer {
+            topo,
+            shapes,
+            unbounded,
+            counts: shapes.counts(),
+        })
     }
 }
 
-/// A bounding volume hierarchy over a triangle list and, optionally, a
-/// sphere list ([`Bvh::build_prims`]), answering closest-hit queries
+/// Each kind's primitives tested before the walk, with their global
+/// indices.
+type Unbounded = Kinds<IndexedOf>;
+
+/// `(global index, primitive)` lists.
+struct IndexedOf;
+
+impl Family for IndexedOf {
+    type Of<S: Shape> = Vec<(u32, S)>;
+}
+
+/// A bounding volume hierarchy over primitives of every kind
+/// ([`Bvh::build_shapes`]), answering closest-hit queries
 /// exactly as brute force does, and occlusion queries exactly as that
 /// closest hit would.
 #[derive(Clone, Debug)]
@@ -269,8 +314,8 @@ pub struct Bvh {
     /// How [`Bvh::closest_hits_columns`] tests a small scene of triangles
     /// in ray packets (see `packet`); empty where it walks the tree.
     packets: packet::Plan,
-    triangles: usize,
-    spheres: usize,
+    /// Each kind's number of primitives.
+    counts: [usize; Shapes::COUNT],
     build_seconds: f64,
 }
 
@@ -297,25 +342,41 @@ impl Bvh {
 
     /// Build the hierarchy over triangles and spheres together: triangle
     /// `i` is reported as primitive index `i` in hits, sphere `j` as
-    /// `tris.len() + j`. With no spheres this is [`Bvh::build_with`]: the
-    /// same tree and the same hits. Uses the current rayon thread pool.
+    /// `tris.len() + j` ([`Bvh::build_shapes`] with these two kinds).
     ///
     /// # Panics
     ///
     /// With 2^29 or more primitives in all.
     pub fn build_prims(tris: &[TriangleEdges], spheres: &[Sphere], options: &BvhOptions) -> Bvh {
+        let shapes = Shapes {
+            triangles: tris,
+            spheres,
+            ..Shapes::default()
+        };
+        Self::build_shapes(&shapes, options)
+    }
+
+    /// Build the hierarchy over the primitives of every kind: hits report
+    /// the kinds' primitives one kind after the other, in the order of
+    /// [`Kinds`] (triangle `i` as `i`, sphere `j` as `T + j`). With
+    /// triangles alone this is [`Bvh::build_with`]: the same tree and the
+    /// same hits. Uses the current rayon thread pool.
+    ///
+    /// # Panics
+    ///
+    /// With 2^29 or more primitives in all.
+    pub fn build_shapes(shapes: &Shapes<'_>, options: &BvhOptions) -> Bvh {
         let started = Instant::now();
-        assert!(
-            tris.len() + spheres.len() < (1 << 29),
-            "a Bvh holds fewer than 2^29 primitives"
-        );
+        let tris = shapes.triangles;
+        let all = shapes.len();
+        assert!(all < (1 << 29), "a Bvh holds fewer than 2^29 primitives");
         let width = if options.width.is_available() {
             options.width
         } else {
             SimdWidth::W8
         };
-        let mut bvh = if tris.len() + spheres.len() <= small::MAX_PRIMS {
-            small::build(tris, spheres, width)
+        let mut bvh = if all <= small::MAX_PRIMS {
+            small::build(shapes, width)
         } else {
             // Big scenes: their largest triangles, if they dwarf the rest,
             // in front of the tree (no candidates built: too slow).
@@ -324,13 +385,13 @@ impl Bvh {
                 root_node: !first.is_empty(),
                 ..BuildParams::for_lanes(width.lanes())
             };
-            let mut bvh = Self::assemble(tris, spheres, &first, width, &params);
+            let mut bvh = Self::assemble(shapes, &first, width, &params);
             // The wavefront's batches test those in ray packets, where that
             // counts cheaper, and walk the tree only for the rays that
             // reach its box.
             let finite = || tris.iter().all(TriangleEdges::is_finite);
             if !first.is_empty()
-                && spheres.is_empty()
+                && all == tris.len()
                 && finite()
                 && let Some(plan) = small::front_plan(tris, &first, width)
             {
@@ -342,77 +403,99 @@ impl Bvh {
         bvh
     }
 
-    /// The hierarchy over `tris` and `spheres` at `width`, built with
-    /// `params`, but for the triangles in `first` (indices, increasing):
-    /// those are tested before the walk, by every ray.
-    fn assemble(
-        tris: &[TriangleEdges],
-        spheres: &[Sphere],
-        first: &[u32],
-        width: SimdWidth,
-        params: &BuildParams,
-    ) -> Bvh {
-        let is_first = |i: usize| first.binary_search(&(i as u32)).is_ok();
-        let mut prims: Vec<Prim> = tris
-            .par_iter()
-            .enumerate()
-            .filter(|&(i, t)| t.is_finite() && !is_first(i))
-            .map(|(i, t)| Prim {
-                b: triangle_box(t),
-                index: i as u32,
-                kind: PrimKind::Triangle as u8,
-            })
-            .collect();
-        let unbounded: Vec<(u32, TriangleEdges)> = tris
-            .iter()
-            .enumerate()
-            .filter(|&(i, t)| !t.is_finite() || is_first(i))
-            .map(|(i, t)| (i as u32, *t))
-            .collect();
-        // Spheres after the triangles, indexed among the spheres (the packs
-        // add the triangles' count).
-        prims.par_extend(spheres.par_iter().enumerate().filter_map(|(j, s)| {
-            let (lo, hi) = s.bounds()?;
-            Some(Prim {
-                b: Aabb {
-                    lo: lo.into(),
-                    hi: hi.into(),
-                },
-                index: j as u32,
-                kind: PrimKind::Sphere as u8,
-            })
-        }));
-        let offset = tris.len() as u32;
-        let unbounded_spheres: Vec<(u32, Sphere)> = spheres
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.bounds().is_none())
-            .map(|(j, s)| (offset + j as u32, *s))
-            .collect();
+    /// The hierarchy over `shapes` at `width`, built with `params`, but for
+    /// the primitives in `first` (global indices, increasing: triangles,
+    /// the first kind): those are tested before the walk, by every ray.
+    fn assemble(shapes: &Shapes<'_>, first: &[u32], width: SimdWidth, params: &BuildParams) -> Bvh {
+        /// Each kind's prims with a box, and its unbounded ones.
+        struct Split<'a> {
+            first: &'a [u32],
+            counts: [usize; Shapes::COUNT],
+            prims: Vec<Prim>,
+        }
+        impl Split<'_> {
+            fn is_first(&self, i: usize) -> bool {
+                self.first.binary_search(&(i as u32)).is_ok()
+            }
+        }
+        impl<'a> Visit<Slices<'a>> for Split<'_> {
+            fn visit<S: Shape>(&mut self, list: &&'a [S]) -> bool {
+                // Indexed among the kind's primitives (the packs add the
+                // kinds' before it).
+                let offset = first_of::<S>(&self.counts);
+                let me = &*self;
+                let prims = list.par_iter().enumerate().filter_map(|(j, s)| {
+                    if me.is_first(offset + j) {
+                        return None;
+                    }
+                    let (lo, hi) = s.bounds()?;
+                    Some(Prim {
+                        b: Aabb { lo, hi },
+                        index: j as u32,
+                        kind: S::KIND as u8,
+                    })
+                });
+                let prims: Vec<Prim> = prims.collect();
+                self.prims.extend(prims);
+                false
+            }
+        }
+        struct UnboundedOf<'a, 'b> {
+            shapes: &'a Shapes<'b>,
+            split: &'a Split<'a>,
+        }
+        impl Make<IndexedOf> for UnboundedOf<'_, '_> {
+            fn make<S: Shape>(&mut self) -> Vec<(u32, S)> {
+                let offset = first_of::<S>(&self.split.counts);
+                let list: &[S] = S::of(self.shapes);
+                list.iter()
+                    .enumerate()
+                    .filter(|&(j, s)| s.bounds().is_none() || self.split.is_first(offset + j))
+                    .map(|(j, s)| ((offset + j) as u32, *s))
+                    .collect()
+            }
+        }
+        let counts = shapes.counts();
+        let mut split = Split {
+            first,
+            counts,
+            prims: Vec::new(),
+        };
+        shapes.any(&mut split);
+        let prims = std::mem::take(&mut split.prims);
+        let unbounded = Unbounded::new(&mut UnboundedOf {
+            shapes,
+            split: &split,
+        });
         let topo = build::build(prims, params);
         let mut bvh = Bvh {
             nodes: Vec::new(),
             root: topo.root,
             width,
-            packs8: Packs::empty(),
+            packs8: Packs::default(),
             #[cfg(target_arch = "x86_64")]
-            packs16: Packs::empty(),
+            packs16: Packs::default(),
             interleave: false,
             in_order: false,
             packets: packet::Plan::default(),
-            triangles: tris.len(),
-            spheres: spheres.len(),
+            counts,
             build_seconds: 0.0,
         };
-        let (u, s, us) = (&unbounded, spheres, &unbounded_spheres);
         match width {
-            SimdWidth::W8 => bvh.packs8 = Packs::new(&topo, tris, u, s, us),
+            SimdWidth::W8 => bvh.packs8 = Packs::build(&topo, shapes, &unbounded),
             #[cfg(target_arch = "x86_64")]
-            SimdWidth::W16 => bvh.packs16 = Packs::new(&topo, tris, u, s, us),
+            SimdWidth::W16 => bvh.packs16 = Packs::build(&topo, shapes, &unbounded),
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         }
-        bvh.in_order = !topo.root.is_node() && unbounded.is_empty() && unbounded_spheres.is_empty();
+        let unbounded = match width {
+            SimdWidth::W8 => bvh.packs8.has_unbounded(),
+            #[cfg(target_arch = "x86_64")]
+            SimdWidth::W16 => bvh.packs16.has_unbounded(),
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
+        };
+        bvh.in_order = !topo.root.is_node() && !unbounded;
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
         bvh
@@ -748,18 +831,18 @@ impl Bvh {
 
     /// Number of triangles the hierarchy was built over.
     pub fn triangle_count(&self) -> usize {
-        self.triangles
+        self.count_of::<TriangleEdges>()
     }
 
-    /// Number of spheres the hierarchy was built over (their primitive
-    /// indices follow the triangles').
-    pub fn sphere_count(&self) -> usize {
-        self.spheres
+    /// Number of primitives of kind `S` the hierarchy was built over
+    /// (their primitive indices follow those of the kinds before it).
+    pub fn count_of<S: Shape>(&self) -> usize {
+        self.counts[S::KIND as usize]
     }
 
-    /// Number of primitives, triangles and spheres.
+    /// Number of primitives, of every kind.
     pub fn prim_count(&self) -> usize {
-        self.triangles + self.spheres
+        self.counts.iter().sum()
     }
 
     /// Number of inner (8-wide) nodes.
@@ -767,7 +850,8 @@ impl Bvh {
         self.nodes.len()
     }
 
-    /// Number of packs (of 8 or 16; triangles and spheres) in the leaves.
+    /// Number of packs (of 8 or 16, of every kind) in the leaves and in
+    /// front of the tree.
     pub fn pack_count(&self) -> usize {
         match self.width {
             SimdWidth::W8 => self.packs8.count(),
@@ -792,9 +876,9 @@ impl Bvh {
     /// and triangles with no box.
     pub fn first_pack_count(&self) -> usize {
         match self.width {
-            SimdWidth::W8 => self.packs8.unbounded.len(),
+            SimdWidth::W8 => self.packs8.triangles.unbounded.len(),
             #[cfg(target_arch = "x86_64")]
-            SimdWidth::W16 => self.packs16.unbounded.len(),
+            SimdWidth::W16 => self.packs16.triangles.unbounded.len(),
             #[cfg(not(target_arch = "x86_64"))]
             SimdWidth::W16 => 0,
         }
@@ -816,7 +900,7 @@ impl Bvh {
     /// The tree is one leaf of triangles in index order, each tested by
     /// every ray.
     fn is_one_leaf_in_order(&self) -> bool {
-        self.in_order && self.root.kind() == PrimKind::Triangle as u32
+        self.in_order && self.root.kind() == TriangleEdges::KIND
     }
 
     /// Test ray packets by `plan` in [`Bvh::closest_hits_columns`].

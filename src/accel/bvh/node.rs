@@ -4,40 +4,16 @@
 use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
-/// The kind of primitive a leaf holds: each kind has its own packs and its
-/// own kernel, and a leaf's child reference carries its kind, so the
-/// traversal dispatches on it when it reaches the leaf.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[repr(u8)]
-pub enum PrimKind {
-    /// Triangles, tested by Möller–Trumbore in packs of 8 or 16.
-    Triangle = 0,
-    /// Analytic spheres, tested by the robust ray/sphere kernel
-    /// ([`intersect_sphere`](crate::accel::sphere::intersect_sphere)) in
-    /// packs of 8 or 16 (the width of the triangle packs).
-    Sphere = 1,
-}
-
-impl PrimKind {
-    /// Number of kinds the child reference can tell apart (kind 3 is
-    /// reserved: it makes the empty reference).
-    pub const MAX: usize = 3;
-
-    /// The kind with this number.
-    pub fn from_u32(k: u32) -> Option<Self> {
-        match k {
-            0 => Some(PrimKind::Triangle),
-            1 => Some(PrimKind::Sphere),
-            _ => None,
-        }
-    }
-}
+/// Kinds of primitive a leaf reference can tell apart (kind 3 is
+/// reserved: it makes the empty reference). A kind's number is its place
+/// in [`Kinds`](crate::accel::shape::Kinds).
+pub const MAX_KINDS: usize = 3;
 
 /// A child reference, 32 bits:
 ///
 /// - [`Child::EMPTY`] (all ones): no child;
 /// - bit 31 clear: an inner node, by index;
-/// - bit 31 set: a leaf: its [`PrimKind`] in bits 29–30, its number of
+/// - bit 31 set: a leaf: its kind ([`Shape::KIND`](crate::accel::shape::Kind::KIND)) in bits 29–30, its number of
 ///   packs minus one in bits 27–28, and its first pack (in that kind's
 ///   pack list) in bits 0–26.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,14 +40,15 @@ impl Child {
     }
 
     /// A leaf of `count` packs of `kind` from `first` on.
-    pub fn leaf(kind: PrimKind, first: usize, count: usize) -> Child {
+    pub fn leaf(kind: u32, first: usize, count: usize) -> Child {
         assert!(
             first + count <= Self::MAX_PACKS,
             "a hierarchy holds at most 2^27 packs of one kind"
         );
         debug_assert!((1..=Self::MAX_LEAF_PACKS).contains(&count));
+        debug_assert!((kind as usize) < MAX_KINDS);
         Child(
-            LEAF | ((kind as u32) << KIND_SHIFT)
+            LEAF | (kind << KIND_SHIFT)
                 | (((count - 1) as u32) << COUNT_SHIFT)
                 | first as u32,
         )

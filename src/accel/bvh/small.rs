@@ -45,8 +45,8 @@
 use super::build::Aabb;
 use super::packet::{MAX_GROUPS, Plan};
 use super::{BuildParams, Bvh, triangle_box};
+use crate::accel::shape::Shapes;
 use crate::accel::simd::SimdWidth;
-use crate::accel::sphere::Sphere;
 use crate::accel::triangle::{TriangleEdges, V3Tri, moller_trumbore};
 use glam::Vec3;
 use rand_core::Rng;
@@ -113,10 +113,11 @@ fn walk_pack(width: SimdWidth) -> f64 {
 /// The cheapest of the candidate builds of a small scene, with the
 /// cheapest packet plan when the scene is all finite triangles and that
 /// plan costs less than the walk (the wavefront's batches then take it).
-pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth) -> Bvh {
+pub(super) fn build(shapes: &Shapes<'_>, width: SimdWidth) -> Bvh {
+    let tris = shapes.triangles;
     let rays = sample_rays(tris);
     let mut best: Option<(Bvh, f64)> = None;
-    for bvh in candidates(tris, spheres, width) {
+    for bvh in candidates(shapes, width) {
         if rays.is_empty() {
             // Nothing to count on: the plain build, the first candidate.
             best = Some((bvh, 0.0));
@@ -129,7 +130,7 @@ pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth
         }
     }
     let (mut bvh, walk) = best.expect("the plain build is a candidate");
-    if spheres.is_empty() && tris.iter().all(TriangleEdges::is_finite) {
+    if shapes.len() == tris.len() && tris.iter().all(TriangleEdges::is_finite) {
         // (With no rays to count on, every plan counts 0: the first, all
         // triangles first, is kept.)
         let ((first, groups), packets) = packet_plan(tris, &rays);
@@ -147,11 +148,8 @@ pub(super) fn build(tris: &[TriangleEdges], spheres: &[Sphere], width: SimdWidth
 /// The candidate builds, the plain one first, then the two-level splits
 /// with `k = 1, 2, ...` packs of occluders (as long as some triangles are
 /// left for the tree), each with one-pack and with full leaves.
-fn candidates<'a>(
-    tris: &'a [TriangleEdges],
-    spheres: &'a [Sphere],
-    width: SimdWidth,
-) -> impl Iterator<Item = Bvh> + 'a {
+fn candidates<'a>(shapes: &'a Shapes<'_>, width: SimdWidth) -> impl Iterator<Item = Bvh> + 'a {
+    let tris = shapes.triangles;
     let lanes = width.lanes();
     let plain = BuildParams::for_lanes(lanes);
     let order = by_area(tris);
@@ -169,9 +167,9 @@ fn candidates<'a>(
                 root_node: true,
                 ..plain
             };
-            Bvh::assemble(tris, spheres, &first, width, &params)
+            Bvh::assemble(shapes, &first, width, &params)
         });
-    std::iter::once_with(move || Bvh::assemble(tris, spheres, &[], width, &plain)).chain(split)
+    std::iter::once_with(move || Bvh::assemble(shapes, &[], width, &plain)).chain(split)
 }
 
 /// The large triangles of a big scene (see [`LARGE`]), at most
@@ -457,9 +455,17 @@ fn sample_rays(tris: &[TriangleEdges]) -> Vec<(Vec3, Vec3, f32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::sphere::closest_hit_brute_force_prims;
+    use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims};
     use crate::accel::triangle::NO_PRIM;
     use crate::scene::Scene;
+
+    /// Triangles alone.
+    fn only(tris: &[TriangleEdges]) -> Shapes<'_> {
+        Shapes {
+            triangles: tris,
+            spheres: &[],
+        }
+    }
 
     fn cornell() -> Vec<TriangleEdges> {
         Scene::cornell()
@@ -509,7 +515,11 @@ mod tests {
         for (tris, spheres) in &scenes {
             let rays = test_rays(tris, &mut u);
             for width in SimdWidth::available() {
-                for bvh in candidates(tris, spheres, width) {
+                let shapes = Shapes {
+                    triangles: tris,
+                    spheres,
+                };
+                for bvh in candidates(&shapes, width) {
                     built += 1;
                     split += usize::from(bvh.first_pack_count() > 0);
                     for &(o, d, t_min) in &rays {
@@ -578,7 +588,11 @@ mod tests {
             let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
             for width in SimdWidth::available() {
                 let params = BuildParams::for_lanes(width.lanes());
-                let mut bvh = Bvh::assemble(tris, &[], &[], width, &params);
+                let shapes = Shapes {
+                    triangles: tris,
+                    spheres: &[],
+                };
+                let mut bvh = Bvh::assemble(&shapes, &[], width, &params);
                 for (first, g) in packet_candidates(tris) {
                     plans += 1;
                     groups += g.len();
@@ -617,7 +631,7 @@ mod tests {
     fn cornell_packets_test_the_blocks_behind_boxes() {
         let cornell = cornell();
         for width in SimdWidth::available() {
-            let bvh = build(&cornell, &[], width);
+            let bvh = build(&only(&cornell), width);
             assert_eq!(bvh.packet_plan(), Some((12, 2)), "{} lanes", width.lanes());
         }
     }
@@ -629,15 +643,19 @@ mod tests {
     #[test]
     fn chooser_picks_by_counted_cost() {
         let cornell = cornell();
-        let bvh = build(&cornell, &[], SimdWidth::W8);
+        let bvh = build(&only(&cornell), SimdWidth::W8);
         assert_eq!((bvh.node_count(), bvh.first_pack_count()), (0, 0));
         let (tris, spheres) = scene("scenes/cornell-obj.toml");
-        let bvh = build(&tris, &spheres, SimdWidth::W8);
+        let shapes = Shapes {
+            triangles: &tris,
+            spheres: &spheres,
+        };
+        let bvh = build(&shapes, SimdWidth::W8);
         assert!(bvh.first_pack_count() > 0, "the crate's room is split off");
         assert_eq!(bvh.node_count(), 1);
         // The choice is the cheapest by count, and the same every time.
         let rays = sample_rays(&tris);
-        let min = candidates(&tris, &spheres, SimdWidth::W8)
+        let min = candidates(&shapes, SimdWidth::W8)
             .map(|b| cost(&b, &rays))
             .fold(f64::INFINITY, f64::min);
         assert_eq!(cost(&bvh, &rays), min);

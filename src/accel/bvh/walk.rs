@@ -5,12 +5,12 @@
 //! (box tests, child order, the stack, culling) is shared.
 
 use super::node::{Child, Node8, NodeRay};
-use super::{Bvh, LanesIn};
+use super::{Bvh, KindPacks, LanesIn, PacksOf};
+use crate::accel::shape::{Shape, ShapePack, Visit, VisitOne};
 use crate::accel::simd::{Lanes, prefetch_lines};
-use crate::accel::sphere::SpherePack;
+use crate::accel::triangle::PackHits;
 #[cfg(doc)]
-use crate::accel::triangle::NO_PRIM;
-use crate::accel::triangle::{PackHits, TrianglePack};
+use crate::accel::triangle::{NO_PRIM, TrianglePack};
 use crate::math::V3;
 use glam::Vec3;
 use std::marker::PhantomData;
@@ -77,7 +77,7 @@ pub(crate) trait Query<R: Lanes> {
     /// ends the walk (the answer is known). `in_order`: these are all the
     /// packs the walk tests, in increasing index order (a tree of one
     /// leaf).
-    fn leaf<P: PackKernel<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool)
+    fn leaf<P: ShapePack<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool)
     -> bool;
     /// The answer, once the walk is over.
     fn output(&self) -> Self::Output;
@@ -85,44 +85,6 @@ pub(crate) trait Query<R: Lanes> {
     #[inline(always)]
     fn node(&mut self) {}
 }
-
-/// A pack of primitives of one kind, as the queries test it: each kind's
-/// own kernel, with the same contract (see [`TrianglePack::intersect`]).
-pub(crate) trait PackKernel<R: Lanes> {
-    /// Keep, lane by lane, the smallest `(t, index)` in `best`.
-    fn intersect<const IN_INDEX_ORDER: bool>(
-        &self,
-        o: &V3<R>,
-        d: &V3<R>,
-        t_min: R,
-        best: &mut PackHits<R>,
-    );
-    /// Whether a primitive of the pack lies at `t_min < t < t_max`.
-    fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool;
-}
-
-macro_rules! pack_kernel {
-    ($pack:ident) => {
-        impl<R: Lanes> PackKernel<R> for $pack<R> {
-            #[inline(always)]
-            fn intersect<const IN_INDEX_ORDER: bool>(
-                &self,
-                o: &V3<R>,
-                d: &V3<R>,
-                t_min: R,
-                best: &mut PackHits<R>,
-            ) {
-                $pack::intersect::<IN_INDEX_ORDER>(self, o, d, t_min, best)
-            }
-            #[inline(always)]
-            fn occludes(&self, o: &V3<R>, d: &V3<R>, t_min: R, t_max: R) -> bool {
-                $pack::occludes(self, o, d, t_min, t_max)
-            }
-        }
-    };
-}
-pack_kernel!(TrianglePack);
-pack_kernel!(SpherePack);
 
 /// A query for both lane types, so a caller can pick the width at run time.
 pub(crate) trait QueryKind {
@@ -163,7 +125,7 @@ impl<R: Lanes> Query<R> for Closest<R> {
         self.cull
     }
     #[inline(always)]
-    fn leaf<P: PackKernel<R>>(
+    fn leaf<P: ShapePack<R>>(
         &mut self,
         r: &PackRay<R>,
         packs: &[Pack<P>],
@@ -224,7 +186,7 @@ impl<R: Lanes> Query<R> for AnyHit<R> {
         self.cull
     }
     #[inline(always)]
-    fn leaf<P: PackKernel<R>>(
+    fn leaf<P: ShapePack<R>>(
         &mut self,
         r: &PackRay<R>,
         packs: &[Pack<P>],
@@ -253,14 +215,21 @@ impl QueryKind for AnyHitKind {
     type Q<R: LanesIn> = AnyHit<R>;
 }
 
-/// Test the primitives that are outside the tree; true when that already
-/// answers the query.
+/// Test the primitives that are outside the tree, kind after kind; true
+/// when that already answers the query.
 #[inline(always)]
 fn start<R: LanesIn, Q: Query<R>>(bvh: &Bvh, r: &PackRay<R>, q: &mut Q) -> bool {
-    let packs = R::packs(bvh);
-    let (tris, spheres) = (&packs.unbounded, &packs.unbounded_spheres);
-    (!tris.is_empty() && q.leaf(r, tris, false))
-        || (!spheres.is_empty() && q.leaf(r, spheres, false))
+    struct Start<'a, R: Lanes, Q> {
+        r: &'a PackRay<R>,
+        q: &'a mut Q,
+    }
+    impl<R: Lanes, Q: Query<R>> Visit<PacksOf<R>> for Start<'_, R, Q> {
+        #[inline(always)]
+        fn visit<S: Shape>(&mut self, k: &KindPacks<S::Pack<R>>) -> bool {
+            !k.unbounded.is_empty() && self.q.leaf(self.r, &k.unbounded, false)
+        }
+    }
+    R::packs(bvh).any(&mut Start { r, q })
 }
 
 /// Hand the leaf `leaf` to the query, by its kind; true ends the walk.
@@ -274,12 +243,29 @@ fn visit_leaf<R: LanesIn, Q: Query<R>>(
     leaf: Child,
     in_order: bool,
 ) -> bool {
-    let (first, count) = leaf.packs();
-    match leaf.kind() {
-        0 => q.leaf(r, &R::packs(bvh).triangles[first..first + count], in_order),
-        1 => q.leaf(r, &R::packs(bvh).spheres[first..first + count], in_order),
-        _ => false,
+    struct Leaf<'a, R: Lanes, Q> {
+        r: &'a PackRay<R>,
+        q: &'a mut Q,
+        packs: (usize, usize),
+        in_order: bool,
     }
+    impl<R: Lanes, Q: Query<R>> VisitOne<PacksOf<R>> for Leaf<'_, R, Q> {
+        type Out = bool;
+        #[inline(always)]
+        fn visit<S: Shape>(self, k: &KindPacks<S::Pack<R>>) -> bool {
+            let (first, count) = self.packs;
+            self.q
+                .leaf(self.r, &k.leaves[first..first + count], self.in_order)
+        }
+    }
+    let packs = leaf.packs();
+    let visit = Leaf {
+        r,
+        q,
+        packs,
+        in_order,
+    };
+    R::packs(bvh).by_kind(leaf.kind(), visit).unwrap_or(false)
 }
 
 /// The children of one node that a walk has yet to visit: where the ray
@@ -488,15 +474,19 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
                 prefetch_lines(n, size_of::<Node8>() / 64);
             }
         } else if cur != Child::EMPTY {
-            let (first, count) = cur.packs();
-            let packs = R::packs(bvh);
-            if cur.kind() == 0 {
-                if let Some(p) = packs.triangles.get(first) {
-                    prefetch_lines(p, count * size_of::<Pack<TrianglePack<R>>>() / 64);
+            /// Prefetch a leaf's packs.
+            struct Fetch((usize, usize));
+            impl<R: Lanes> VisitOne<PacksOf<R>> for Fetch {
+                type Out = ();
+                #[inline(always)]
+                fn visit<S: Shape>(self, k: &KindPacks<S::Pack<R>>) {
+                    let (first, count) = self.0;
+                    if let Some(p) = k.leaves.get(first) {
+                        prefetch_lines(p, count * size_of::<Pack<S::Pack<R>>>() / 64);
+                    }
                 }
-            } else if let Some(p) = packs.spheres.get(first) {
-                prefetch_lines(p, count * size_of::<Pack<SpherePack<R>>>() / 64);
             }
+            R::packs(bvh).by_kind(cur.kind(), Fetch(cur.packs()));
         }
     }
 }
@@ -635,7 +625,7 @@ impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
         self.q.cull()
     }
     #[inline(always)]
-    fn leaf<P: PackKernel<R>>(
+    fn leaf<P: ShapePack<R>>(
         &mut self,
         r: &PackRay<R>,
         packs: &[Pack<P>],
