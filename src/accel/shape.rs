@@ -28,7 +28,7 @@
 use crate::accel::simd::Lanes;
 use crate::accel::sphere::Sphere;
 use crate::accel::triangle::{PackHits, TriangleEdges};
-use crate::math::V3;
+use crate::math::{Real, V3};
 use crate::scene::Scene;
 use glam::{Vec3, Vec3A};
 use std::fmt::Debug;
@@ -77,6 +77,59 @@ pub trait Shape: Kind + Copy + Debug + PartialEq + Send + Sync + 'static {
     /// The front (outward) unit normal where the ray `o + t·d` hits the
     /// primitive of data `surface`.
     fn front_normal(surface: &Self::Surface, o: V3<f32>, d: V3<f32>, t: f32) -> V3<f32>;
+
+    /// The number of the scene's primitives of this kind.
+    fn count(scene: &Scene) -> usize;
+
+    /// The scene's emitters of this kind (its primitives whose material
+    /// emits, of positive finite power), in index order, as the light
+    /// sampler takes them.
+    fn emitters(scene: &Scene) -> Vec<AreaEmitter>;
+
+    /// A point of an emitter of this kind, uniform by area, for the unit
+    /// square's point `u`: the point and the emitter's front normal there,
+    /// one lane or eight (the same bits).
+    fn sample_area<R: Real>(e: &AreaShape<R>, u: [R; 2]) -> (V3<R>, V3<R>);
+}
+
+/// An emitter's geometry as [`Shape::sample_area`] reads it (one lane or
+/// eight); each kind says what its fields mean (a triangle: a vertex and
+/// two edges; a sphere: its center and radius). Unused fields are zero.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaShape<R> {
+    /// A point (a triangle's vertex 0, a parallelogram's corner, a
+    /// sphere's center).
+    pub v0: V3<R>,
+    /// A first edge or axis.
+    pub e1: V3<R>,
+    /// A second edge or axis.
+    pub e2: V3<R>,
+    /// The front unit normal, where it is the same everywhere.
+    pub normal: V3<R>,
+    /// A radius.
+    pub radius: R,
+    /// 1 for a parallelogram (the points `v0 + a e1 + b e2`, `a`, `b` in
+    /// `[0, 1]`), else 0.
+    pub parallelogram: R,
+}
+
+/// One emitter of a kind, as [`Shape::emitters`] lists it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaEmitter {
+    /// Its geometry.
+    pub shape: AreaShape<f32>,
+    /// Its primitives (indices among the kind's): one, or two (two
+    /// triangles that make a parallelogram); the first names it.
+    pub prims: [Option<u32>; 2],
+    /// Its area.
+    pub area: f64,
+    /// Its power (`area × mean emitted radiance`).
+    pub power: f64,
+    /// The radiance it emits towards its front.
+    pub emission: Vec3,
+    /// A rectangle's unit edges and their lengths (a parallelogram with
+    /// square corners: sampled by solid angle where it looks large).
+    pub rectangle: Option<([Vec3; 2], [f32; 2])>,
 }
 
 /// A kind's pack of primitives, as the hierarchy's queries test it.

@@ -27,7 +27,7 @@
 //! near root of a few ulps of `r` around 0: callers pass a `t_min` above
 //! that noise (as for triangles), or the ray hits the sphere it left.
 
-use crate::accel::shape::{Shape, ShapePack, Shapes};
+use crate::accel::shape::{AreaEmitter, AreaShape, Shape, ShapePack, Shapes};
 #[cfg(target_arch = "x86_64")]
 use crate::accel::simd::F32x16;
 use crate::accel::simd::{Lanes, SimdWidth};
@@ -380,5 +380,51 @@ impl Shape for Sphere {
     #[inline(always)]
     fn front_normal(center: &V3<f32>, o: V3<f32>, d: V3<f32>, t: f32) -> V3<f32> {
         hit_normal(o, d, t, *center)
+    }
+
+    fn count(scene: &Scene) -> usize {
+        scene.spheres.len()
+    }
+
+    /// Each emissive sphere of positive finite power (area `4π r²`).
+    fn emitters(scene: &Scene) -> Vec<AreaEmitter> {
+        let mut out = Vec::new();
+        for (k, sphere) in scene.spheres.iter().enumerate() {
+            let emission = scene.materials[sphere.material as usize].emission;
+            let area = 4.0 * std::f64::consts::PI * (sphere.radius as f64).powi(2);
+            let power = area * emission.element_sum() as f64 / 3.0;
+            if !(power > 0.0 && power.is_finite()) {
+                continue;
+            }
+            let zero = V3::from(Vec3::ZERO);
+            out.push(AreaEmitter {
+                shape: AreaShape {
+                    v0: sphere.center.into(),
+                    e1: zero,
+                    e2: zero,
+                    normal: zero,
+                    radius: sphere.radius,
+                    parallelogram: 0.0,
+                },
+                prims: [Some(k as u32), None],
+                area,
+                power,
+                emission,
+                rectangle: None,
+            });
+        }
+        out
+    }
+
+    /// Uniform on the sphere's surface by area: `z = 1 - 2 u0`, azimuth
+    /// `2π u1`; the normal is the direction from the center.
+    #[inline(always)]
+    fn sample_area<R: Real>(e: &AreaShape<R>, u: [R; 2]) -> (V3<R>, V3<R>) {
+        let one = R::splat(1.0);
+        let z = R::splat(-2.0).mul_add(u[0], one);
+        let r = (-z).mul_add(z, one).max(R::splat(0.0)).sqrt();
+        let (sin, cos) = crate::math::sin_cos_2pi(u[1]);
+        let dir = V3::new(r * cos, r * sin, z);
+        (dir.mul_add(e.radius, e.v0), dir)
     }
 }

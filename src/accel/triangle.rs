@@ -6,7 +6,7 @@
 //! tested in, so every intersector — scalar brute force, 8-wide packs, a
 //! hierarchy — returns the same triangle and the same `t`, bit for bit.
 
-use crate::accel::shape::{Shape, ShapePack};
+use crate::accel::shape::{AreaEmitter, AreaShape, Shape, ShapePack};
 use crate::accel::simd::Lanes;
 use crate::math::{Real, V3};
 use crate::scene::{Scene, Triangle};
@@ -485,4 +485,167 @@ impl Shape for TriangleEdges {
     fn front_normal(normal: &Vec3, _o: V3<f32>, _d: V3<f32>, _t: f32) -> V3<f32> {
         V3::from(*normal)
     }
+
+    fn count(scene: &Scene) -> usize {
+        scene.triangles.len()
+    }
+
+    /// The emissive triangles of nonzero area, except that two emissive
+    /// triangles of one material that share an edge and together form a
+    /// parallelogram (a quad light made of two triangles, as the Cornell
+    /// box's) are one emitter (unless their emission is textured: it is
+    /// looked up at the point's own triangle); a parallelogram with square
+    /// corners is a rectangle.
+    fn emitters(scene: &Scene) -> Vec<AreaEmitter> {
+        let emissive: Vec<usize> = (0..scene.triangles.len())
+            .filter(|&i| {
+                let t = &scene.triangles[i];
+                let emission = scene.materials[t.material as usize].emission;
+                let area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+                let power = area * emission.element_sum() / 3.0;
+                power > 0.0 && power.is_finite()
+            })
+            .collect();
+        let mut partner = parallelogram_partners(&scene.triangles, &emissive);
+        // A textured emission is looked up at the point's triangle: such
+        // triangles stay emitters of their own.
+        for (k, &i) in emissive.iter().enumerate() {
+            let m = scene.triangles[i].material as usize;
+            if scene.materials[m].maps.emissive.is_some() {
+                partner[k] = None;
+            }
+        }
+        let mut out = Vec::new();
+        for (k, &i) in emissive.iter().enumerate() {
+            let t = &scene.triangles[i];
+            let emission = scene.materials[t.material as usize].emission;
+            let mut shape = AreaShape {
+                v0: t.v[0].into(),
+                e1: (t.v[1] - t.v[0]).into(),
+                e2: (t.v[2] - t.v[0]).into(),
+                normal: t.normal.into(),
+                radius: 0.0,
+                parallelogram: 0.0,
+            };
+            let mut area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+            let (mut second, mut rectangle) = (None, None);
+            match partner[k] {
+                // The later triangle of a pair: already in its emitter.
+                Some((j, _)) if j < i => continue,
+                Some((j, corner)) => {
+                    // The corner opposite the shared edge, and the edges
+                    // from it to the shared edge's ends.
+                    let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+                    shape.v0 = x.into();
+                    shape.e1 = (p - x).into();
+                    shape.e2 = (q - x).into();
+                    shape.parallelogram = 1.0;
+                    area = (p - x).cross(q - x).length();
+                    let (l1, l2) = ((p - x).length(), (q - x).length());
+                    if (p - x).dot(q - x).abs() <= 1e-6 * l1 * l2 {
+                        rectangle = Some(([(p - x) / l1, (q - x) / l2], [l1, l2]));
+                    }
+                    second = Some(j as u32);
+                }
+                None => {}
+            }
+            let power = area * emission.element_sum() / 3.0;
+            out.push(AreaEmitter {
+                shape,
+                prims: [Some(i as u32), second],
+                area: area as f64,
+                power: power as f64,
+                emission,
+                rectangle,
+            });
+        }
+        out
+    }
+
+    /// Uniform by area: on a triangle through [`square_to_triangle`], on a
+    /// parallelogram the square mapped linearly; the normal is the
+    /// emitter's.
+    #[inline(always)]
+    fn sample_area<R: Real>(e: &AreaShape<R>, u: [R; 2]) -> (V3<R>, V3<R>) {
+        let [t1, t2] = square_to_triangle(u);
+        let parallelogram = R::splat(0.0).lt(e.parallelogram);
+        let (b1, b2) = (
+            R::select(parallelogram, u[0], t1),
+            R::select(parallelogram, u[1], t2),
+        );
+        (e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)), e.normal)
+    }
 }
+
+/// Barycentric coordinates `(b1, b2)` (weights of vertices 1 and 2) of a
+/// point uniform on a triangle, from a point of the unit square: Heitz's
+/// low-distortion map ("A Low-Distortion Map Between Triangle and Square",
+/// 2019), which keeps stratified points stratified.
+#[inline(always)]
+pub fn square_to_triangle<R: Real>([u0, u1]: [R; 2]) -> [R; 2] {
+    let half = R::splat(0.5);
+    let below = u0.lt(u1);
+    let (h0, h1) = (u0 * half, u1 * half);
+    let b0 = R::select(below, h0, u0 - h1);
+    let b1 = R::select(below, u1 - h0, h1);
+    // Weights of vertices 0, 1, 2 are (b0, b1, 1 - b0 - b1).
+    [b1, R::splat(1.0) - b0 - b1]
+}
+
+/// For each of the triangles `emissive` (indices into `triangles`), the
+/// emissive triangle it forms a parallelogram with, if any, and which of
+/// its own corners lies opposite their shared edge. Two triangles pair
+/// when they share an edge (the same two vertices, bit for bit), have the
+/// same material and the same front side, and their corners opposite that
+/// edge mirror each other through the edge's midpoint (`x + y = p + q`, to
+/// within rounding): then their union is the parallelogram spanned from
+/// either corner. A triangle pairs at most once, with the first partner in
+/// index order; the result is a function of the scene only.
+fn parallelogram_partners(
+    triangles: &[crate::scene::Triangle],
+    emissive: &[usize],
+) -> Vec<Option<(usize, usize)>> {
+    use std::collections::HashMap;
+    type Key = ([u32; 3], [u32; 3]);
+    let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
+    let edge_key = |a: glam::Vec3, b: glam::Vec3| -> Key {
+        let (a, b) = (bits(a), bits(b));
+        if a <= b { (a, b) } else { (b, a) }
+    };
+    let mut partner = vec![None; emissive.len()];
+    // Unpaired triangles by edge: (position in `emissive`, opposite corner).
+    let mut open: HashMap<Key, (usize, usize)> = HashMap::new();
+    for (k, &i) in emissive.iter().enumerate() {
+        let t = &triangles[i];
+        for corner in 0..3 {
+            let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+            let key = edge_key(p, q);
+            let Some(&(m, other_corner)) = open.get(&key) else {
+                continue;
+            };
+            if partner[m].is_some() {
+                continue;
+            }
+            let s = &triangles[emissive[m]];
+            let y = s.v[other_corner];
+            let scale = [x, y, p, q]
+                .iter()
+                .map(|v| v.abs().max_element())
+                .fold(0.0, f32::max);
+            let mirrored = ((x + y) - (p + q)).abs().max_element() <= 4.0 * f32::EPSILON * scale;
+            if s.material == t.material && s.normal.dot(t.normal) > 0.999_99 && mirrored {
+                partner[m] = Some((i, other_corner));
+                partner[k] = Some((emissive[m], corner));
+                break;
+            }
+        }
+        if partner[k].is_none() {
+            for corner in 0..3 {
+                let key = edge_key(t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
+                open.entry(key).or_insert((k, corner));
+            }
+        }
+    }
+    partner
+}
+

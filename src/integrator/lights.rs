@@ -3,7 +3,11 @@
 //! uniformly by the solid angle it subtends at the shading point
 //! ([`SphericalRectangle`]), elsewhere uniformly by area.
 //!
-//! Every emissive triangle is an emitter, except that two emissive
+//! Each shape kind lists its emitters and samples points on them by area
+//! ([`Shape::emitters`], [`Shape::sample_area`]); the lights go through
+//! the kinds' list ([`Kinds`]) and name no kind but the first, triangles,
+//! whose pairs may be rectangles sampled by solid angle. Every emissive
+//! triangle is an emitter, except that two emissive
 //! triangles of one material that share an edge and together form a
 //! parallelogram (a quad light made of two triangles, as the Cornell box's)
 //! are one emitter: a point on it is the unit square's point mapped
@@ -27,6 +31,9 @@
 
 use super::environment::EnvLight;
 use super::punctual::Punctual;
+use crate::accel::shape::{AreaShape, Family, Kinds, Make, Shape, Shapes, Visit};
+pub use crate::accel::triangle::square_to_triangle;
+use crate::accel::triangle::TriangleEdges;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use wide::f32x8;
@@ -34,7 +41,7 @@ use wide::f32x8;
 /// The scene's emitters, with what sampling them needs.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
-    /// Primitive index of each emitter (triangles, then spheres; a
+    /// Primitive index of each emitter (the kinds in order; a
     /// parallelogram: its first triangle).
     triangle: Vec<u32>,
     /// Running sums of the emitters' powers, normalised to end at 1.
@@ -44,8 +51,11 @@ pub struct Lights {
     /// The emitter of each primitive ([`NOT_EMITTER`] for primitives that
     /// do not emit), so a hit can look its density up.
     emitter_of: Vec<u32>,
-    /// Whether some emitters are spheres.
-    has_spheres: bool,
+    /// Which kinds have emitters.
+    kinds: Kinds<Flag>,
+    /// Whether some emitters are of another kind than the first
+    /// (triangles): their points are then chosen lane by lane by kind.
+    mixed: bool,
     /// Whether some emitters are rectangles (sampled by solid angle).
     has_rectangles: bool,
     /// The scene's environment, if it has one.
@@ -63,8 +73,9 @@ pub struct Lights {
     suns: bool,
 }
 
-/// One emitter (`R = f32`) or eight (`R = f32x8`): a triangle, a
-/// parallelogram or a sphere, its radiance and its sampling density.
+/// One emitter (`R = f32`) or eight (`R = f32x8`) of any kind (a
+/// triangle, a parallelogram, a sphere), its radiance and its sampling
+/// density.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Emitter<R = f32> {
@@ -104,6 +115,16 @@ pub struct Emitter<R = f32> {
     /// triangle's; [`NO_PRIM_BITS`] for none): where a point on it reads
     /// a textured emission ([`Tables::light_emission`](super::tables::Tables::light_emission)).
     pub prim: R,
+    /// Its kind's number ([`Kind::KIND`](crate::accel::shape::Kind::KIND)).
+    pub kind: R,
+}
+
+/// Whether each kind has emitters.
+#[derive(Clone, Copy, Debug, Default)]
+struct Flag;
+
+impl Family for Flag {
+    type Of<S: Shape> = bool;
 }
 
 /// [`Emitter::prim`] of no primitive (the environment, [`Emitter::NONE`]):
@@ -124,7 +145,7 @@ const ZERO: V3<f32> = V3 {
 };
 
 /// Number of floats in an [`Emitter`].
-const EMITTER_FLOATS: usize = 30;
+const EMITTER_FLOATS: usize = 31;
 
 impl Emitter {
     /// The emitter's floats, in field order.
@@ -153,6 +174,7 @@ impl Emitter {
             self.lengths[1],
             self.scale,
             self.prim,
+            self.kind,
         ]);
         f
     }
@@ -174,6 +196,7 @@ impl Emitter {
         lengths: [0.0; 2],
         scale: 0.0,
         prim: NO_PRIM_BITS,
+        kind: 0.0,
     };
 }
 
@@ -197,6 +220,20 @@ impl<R: Real> Emitter<R> {
             lengths: [f[26], f[27]],
             scale: f[28],
             prim: f[29],
+            kind: f[30],
+        }
+    }
+
+    /// Its geometry, as its kind's [`Shape::sample_area`] reads it.
+    #[inline(always)]
+    pub fn area_shape(&self) -> AreaShape<R> {
+        AreaShape {
+            v0: self.v0,
+            e1: self.e1,
+            e2: self.e2,
+            normal: self.normal,
+            radius: self.radius,
+            parallelogram: self.parallelogram,
         }
     }
 }
@@ -219,6 +256,36 @@ impl Emitter<f32x8> {
     #[inline(always)]
     pub fn splat(e: &Emitter) -> Self {
         Self::from_floats(e.floats().map(f32x8::splat))
+    }
+}
+
+/// Whether some kind but the first has emitters.
+struct OtherKinds;
+
+impl Visit<Flag> for OtherKinds {
+    fn visit<S: Shape>(&mut self, has: &bool) -> bool {
+        S::KIND != 0 && *has
+    }
+}
+
+/// [`Lights::point_on`]'s points of the kinds after the first: each
+/// kind's, where it has emitters, in the lanes of its emitters.
+struct ByKind<'a, R> {
+    emitter: &'a Emitter<R>,
+    u: [R; 2],
+    p: LightPoint<R>,
+}
+
+impl<R: Real> Visit<Flag> for ByKind<'_, R> {
+    #[inline(always)]
+    fn visit<S: Shape>(&mut self, has: &bool) -> bool {
+        if S::KIND != 0 && *has {
+            let (point, normal) = S::sample_area(&self.emitter.area_shape(), self.u);
+            let mine = self.emitter.kind.eq(R::splat(S::KIND as f32));
+            self.p.point = V3::select(mine, point, self.p.point);
+            self.p.normal = V3::select(mine, normal, self.p.normal);
+        }
+        false
     }
 }
 
@@ -370,48 +437,20 @@ impl<R: Real> LightPoint<R> {
     }
 
     /// [`LightPoint::on`] where `e` is no rectangle (the same bits, without
-    /// setting up a spherical rectangle): uniform by area.
+    /// setting up a spherical rectangle): uniform by area, as the first
+    /// kind, triangles, sample it ([`Shape::sample_area`]).
     #[inline(always)]
     pub fn on_by_area(e: &Emitter<R>, u: [R; 2]) -> Self {
-        let [t1, t2] = square_to_triangle(u);
-        let parallelogram = R::splat(0.0).lt(e.parallelogram);
-        let (b1, b2) = (
-            R::select(parallelogram, u[0], t1),
-            R::select(parallelogram, u[1], t2),
-        );
+        let (point, normal) = TriangleEdges::sample_area(&e.area_shape(), u);
         Self {
-            point: e.e1.mul_add(b1, e.e2.mul_add(b2, e.v0)),
-            normal: e.normal,
+            point,
+            normal,
             emission: e.emission,
             pdf_area: e.pdf_area,
             pdf_solid_angle: R::splat(0.0),
             scale: e.scale,
             prim: e.prim,
             delta: R::splat(0.0),
-        }
-    }
-
-    /// The point [`LightPoint::on`] gives on a triangle or parallelogram
-    /// emitter, or on a sphere emitter (a lane whose `radius` is positive)
-    /// a point uniform on its surface by area: `z = 1 - 2 u0`, azimuth
-    /// `2π u1`.
-    #[inline(always)]
-    pub fn on_any(e: &Emitter<R>, o: V3<R>, u: [R; 2], rectangles: bool) -> Self {
-        let t = if rectangles {
-            Self::on(e, o, u)
-        } else {
-            Self::on_by_area(e, u)
-        };
-        let one = R::splat(1.0);
-        let z = R::splat(-2.0).mul_add(u[0], one);
-        let r = (-z).mul_add(z, one).max(R::splat(0.0)).sqrt();
-        let (sin, cos) = crate::math::sin_cos_2pi(u[1]);
-        let dir = V3::new(r * cos, r * sin, z);
-        let sphere = R::splat(0.0).lt(e.radius);
-        Self {
-            point: V3::select(sphere, dir.mul_add(e.radius, e.v0), t.point),
-            normal: V3::select(sphere, dir, t.normal),
-            ..t
         }
     }
 }
@@ -421,96 +460,65 @@ impl Lights {
     /// whose area is not zero (pairs that form a parallelogram as one,
     /// see the module documentation), then its emissive spheres.
     pub fn new(scene: &Scene) -> Self {
-        let mut lights = Lights {
-            emitter_of: vec![NOT_EMITTER; scene.triangles.len() + scene.spheres.len()],
-            has_spheres: false,
-            ..Lights::default()
-        };
-        // Per emitter: its primitives, power and area.
-        let mut shapes: Vec<([Option<u32>; 2], f64, f64)> = Vec::new();
-        let emissive: Vec<usize> = (0..scene.triangles.len())
-            .filter(|&i| {
-                let t = &scene.triangles[i];
-                let emission = scene.materials[t.material as usize].emission;
-                let area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
-                let power = area * emission.element_sum() / 3.0;
-                power > 0.0 && power.is_finite()
-            })
-            .collect();
-        let mut partner = parallelogram_partners(&scene.triangles, &emissive);
-        // A textured emission is looked up at the point's triangle: such
-        // triangles stay emitters of their own.
-        for (k, &i) in emissive.iter().enumerate() {
-            let m = scene.triangles[i].material as usize;
-            if scene.materials[m].maps.emissive.is_some() {
-                partner[k] = None;
-            }
+        /// Each kind's emitters into `lights`.
+        struct Gather<'a> {
+            scene: &'a Scene,
+            lights: &'a mut Lights,
+            /// Per emitter: its (global) primitives, power and area.
+            shapes: Vec<([Option<u32>; 2], f64, f64)>,
+            first: u32,
         }
-        for (k, &i) in emissive.iter().enumerate() {
-            let t = &scene.triangles[i];
-            let emission = scene.materials[t.material as usize].emission;
-            let mut emitter = Emitter {
-                v0: t.v[0].into(),
-                e1: (t.v[1] - t.v[0]).into(),
-                e2: (t.v[2] - t.v[0]).into(),
-                normal: t.normal.into(),
-                emission: emission.into(),
-                scale: scene.primitive_scale(i),
-                prim: f32::from_bits(i as u32),
-                ..Emitter::NONE
-            };
-            let mut area = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
-            let mut second = None;
-            match partner[k] {
-                // The later triangle of a pair: already in its emitter.
-                Some((j, _)) if j < i => continue,
-                Some((j, corner)) => {
-                    // The corner opposite the shared edge, and the edges
-                    // from it to the shared edge's ends.
-                    let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
-                    emitter.v0 = x.into();
-                    emitter.e1 = (p - x).into();
-                    emitter.e2 = (q - x).into();
-                    emitter.parallelogram = 1.0;
-                    emitter.scale = emitter.scale.max(scene.primitive_scale(j));
-                    area = (p - x).cross(q - x).length();
-                    let (l1, l2) = ((p - x).length(), (q - x).length());
-                    if (p - x).dot(q - x).abs() <= 1e-6 * l1 * l2 {
-                        emitter.rectangle = 1.0;
-                        lights.has_rectangles = true;
-                        emitter.axes = [((p - x) / l1).into(), ((q - x) / l2).into()];
-                        emitter.lengths = [l1, l2];
+        impl Make<Flag> for Gather<'_> {
+            fn make<S: Shape>(&mut self) -> bool {
+                let (scene, first) = (self.scene, self.first);
+                self.first += S::count(scene) as u32;
+                let emitters = S::emitters(scene);
+                for a in &emitters {
+                    let [i, second] = a.prims.map(|p| p.map(|p| first + p));
+                    let i = i.expect("an emitter has a primitive");
+                    let mut scale = scene.primitive_scale(i as usize);
+                    if let Some(j) = second {
+                        scale = scale.max(scene.primitive_scale(j as usize));
                     }
-                    second = Some(j as u32);
+                    let g = &a.shape;
+                    let mut e = Emitter {
+                        v0: g.v0,
+                        e1: g.e1,
+                        e2: g.e2,
+                        normal: g.normal,
+                        radius: g.radius,
+                        parallelogram: g.parallelogram,
+                        emission: a.emission.into(),
+                        scale,
+                        prim: f32::from_bits(i),
+                        kind: S::KIND as f32,
+                        ..Emitter::NONE
+                    };
+                    if let Some((axes, lengths)) = a.rectangle {
+                        e.rectangle = 1.0;
+                        self.lights.has_rectangles = true;
+                        e.axes = axes.map(V3::from);
+                        e.lengths = lengths;
+                    }
+                    self.lights.triangle.push(i);
+                    self.lights.emitters.push(e);
+                    self.shapes.push(([Some(i), second], a.power, a.area));
                 }
-                None => {}
+                !emitters.is_empty()
             }
-            let power = area * emission.element_sum() / 3.0;
-            lights.triangle.push(i as u32);
-            lights.emitters.push(emitter);
-            shapes.push(([Some(i as u32), second], power as f64, area as f64));
         }
-        let first_sphere = scene.triangles.len();
-        for (k, sphere) in scene.spheres.iter().enumerate() {
-            let emission = scene.materials[sphere.material as usize].emission;
-            let area = 4.0 * std::f64::consts::PI * (sphere.radius as f64).powi(2);
-            let power = area * emission.element_sum() as f64 / 3.0;
-            if !(power > 0.0 && power.is_finite()) {
-                continue;
-            }
-            let prim = (first_sphere + k) as u32;
-            lights.has_spheres = true;
-            lights.triangle.push(prim);
-            lights.emitters.push(Emitter {
-                v0: sphere.center.into(),
-                emission: emission.into(),
-                radius: sphere.radius,
-                scale: scene.primitive_scale(prim as usize),
-                prim: f32::from_bits(prim),
-                ..Emitter::NONE
-            });
-            shapes.push(([Some(prim), None], power, area));
-        }
+        let mut lights = Lights::default();
+        let mut gather = Gather {
+            scene,
+            lights: &mut lights,
+            shapes: Vec::new(),
+            first: 0,
+        };
+        let kinds = Kinds::new(&mut gather);
+        let (shapes, prims) = (gather.shapes, gather.first as usize);
+        lights.kinds = kinds;
+        lights.mixed = Shapes::COUNT > 1 && lights.kinds.any(&mut OtherKinds);
+        lights.emitter_of = vec![NOT_EMITTER; prims];
         let mut total: f64 = shapes.iter().map(|s| s.1).sum();
         let (lo, hi) = scene.bounds();
         let largest = lo.abs().max(hi.abs()).max_element();
@@ -771,16 +779,23 @@ impl Lights {
     }
 
     /// The point on `emitter` (one lane or eight) for the shading point
-    /// `o` and the numbers `u`: [`LightPoint::on`], or
-    /// [`LightPoint::on_any`] where the scene has emissive spheres (the
-    /// spherical rectangle only where the scene has rectangle emitters).
+    /// `o` and the numbers `u`: [`LightPoint::on`] (where the scene has
+    /// rectangle emitters) or [`LightPoint::on_by_area`], and where the
+    /// scene has emitters of other kinds than the first, each lane of such
+    /// a kind the point its kind samples ([`Shape::sample_area`]).
     #[inline(always)]
     pub fn point_on<R: Real>(&self, emitter: &Emitter<R>, o: V3<R>, u: [R; 2]) -> LightPoint<R> {
-        match (self.has_spheres, self.has_rectangles) {
-            (true, rectangles) => LightPoint::on_any(emitter, o, u, rectangles),
-            (false, true) => LightPoint::on(emitter, o, u),
-            (false, false) => LightPoint::on_by_area(emitter, u),
+        let p = if self.has_rectangles {
+            LightPoint::on(emitter, o, u)
+        } else {
+            LightPoint::on_by_area(emitter, u)
+        };
+        if !self.mixed {
+            return p;
         }
+        let mut by_kind = ByKind { emitter, u, p };
+        self.kinds.any(&mut by_kind);
+        by_kind.p
     }
 
     /// The density per unit area with which [`Lights::sample`] picks a
@@ -818,84 +833,12 @@ impl Lights {
     }
 }
 
-/// Barycentric coordinates `(b1, b2)` (weights of vertices 1 and 2) of a
-/// point uniform on a triangle, from a point of the unit square: Heitz's
-/// low-distortion map ("A Low-Distortion Map Between Triangle and Square",
-/// 2019), which keeps stratified points stratified.
-#[inline(always)]
-pub fn square_to_triangle<R: Real>([u0, u1]: [R; 2]) -> [R; 2] {
-    let half = R::splat(0.5);
-    let below = u0.lt(u1);
-    let (h0, h1) = (u0 * half, u1 * half);
-    let b0 = R::select(below, h0, u0 - h1);
-    let b1 = R::select(below, u1 - h0, h1);
-    // Weights of vertices 0, 1, 2 are (b0, b1, 1 - b0 - b1).
-    [b1, R::splat(1.0) - b0 - b1]
-}
-
 /// The power heuristic (β = 2) weight of a strategy of density `a` against
 /// one of density `b`: `a² / (a² + b²)`, 1 when `b` is 0.
 #[inline(always)]
 pub fn power_heuristic<R: Real>(a: R, b: R) -> R {
     let (a2, b2) = (a * a, b * b);
     R::select(b2.eq(R::splat(0.0)), R::splat(1.0), a2 / (a2 + b2))
-}
-
-/// For each of the triangles `emissive` (indices into `triangles`), the
-/// emissive triangle it forms a parallelogram with, if any, and which of
-/// its own corners lies opposite their shared edge. Two triangles pair
-/// when they share an edge (the same two vertices, bit for bit), have the
-/// same material and the same front side, and their corners opposite that
-/// edge mirror each other through the edge's midpoint (`x + y = p + q`, to
-/// within rounding): then their union is the parallelogram spanned from
-/// either corner. A triangle pairs at most once, with the first partner in
-/// index order; the result is a function of the scene only.
-fn parallelogram_partners(
-    triangles: &[crate::scene::Triangle],
-    emissive: &[usize],
-) -> Vec<Option<(usize, usize)>> {
-    use std::collections::HashMap;
-    type Key = ([u32; 3], [u32; 3]);
-    let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
-    let edge_key = |a: glam::Vec3, b: glam::Vec3| -> Key {
-        let (a, b) = (bits(a), bits(b));
-        if a <= b { (a, b) } else { (b, a) }
-    };
-    let mut partner = vec![None; emissive.len()];
-    // Unpaired triangles by edge: (position in `emissive`, opposite corner).
-    let mut open: HashMap<Key, (usize, usize)> = HashMap::new();
-    for (k, &i) in emissive.iter().enumerate() {
-        let t = &triangles[i];
-        for corner in 0..3 {
-            let (x, p, q) = (t.v[corner], t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
-            let key = edge_key(p, q);
-            let Some(&(m, other_corner)) = open.get(&key) else {
-                continue;
-            };
-            if partner[m].is_some() {
-                continue;
-            }
-            let s = &triangles[emissive[m]];
-            let y = s.v[other_corner];
-            let scale = [x, y, p, q]
-                .iter()
-                .map(|v| v.abs().max_element())
-                .fold(0.0, f32::max);
-            let mirrored = ((x + y) - (p + q)).abs().max_element() <= 4.0 * f32::EPSILON * scale;
-            if s.material == t.material && s.normal.dot(t.normal) > 0.999_99 && mirrored {
-                partner[m] = Some((i, other_corner));
-                partner[k] = Some((emissive[m], corner));
-                break;
-            }
-        }
-        if partner[k].is_none() {
-            for corner in 0..3 {
-                let key = edge_key(t.v[(corner + 1) % 3], t.v[(corner + 2) % 3]);
-                open.entry(key).or_insert((k, corner));
-            }
-        }
-    }
-    partner
 }
 
 #[cfg(test)]

@@ -26,8 +26,8 @@
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
 use crate::accel::bvh::Bvh;
-use crate::accel::sphere::{Sphere, closest_hit_brute_force_prims};
-use crate::accel::triangle::{Hit, TriangleEdges};
+use crate::accel::shape::{OwnedShapes, closest_hit_brute_force_shapes};
+use crate::accel::triangle::Hit;
 use crate::film::{AovSample, accumulate};
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{
@@ -45,8 +45,8 @@ use std::sync::Arc;
 
 /// How the tracer finds closest hits.
 enum Accel {
-    /// Every triangle and sphere, scalar, in index order.
-    BruteForce(Vec<TriangleEdges>, Vec<Sphere>),
+    /// Every primitive of every kind, scalar, in index order.
+    BruteForce(OwnedShapes),
     /// The bounding volume hierarchy.
     Bvh(Arc<Bvh>),
 }
@@ -85,10 +85,7 @@ impl ReferenceTracer {
         Self::with_accel(
             scene,
             max_depth,
-            Accel::BruteForce(
-                crate::accel::scene_triangles(scene),
-                crate::accel::scene_spheres(scene),
-            ),
+            Accel::BruteForce(OwnedShapes::of_scene(scene)),
         )
     }
 
@@ -140,7 +137,9 @@ impl ReferenceTracer {
     fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let cast = |t_min: f32| match &self.accel {
             Accel::Bvh(b) => b.closest_hit(o, d, t_min, t_max),
-            Accel::BruteForce(t, s) => closest_hit_brute_force_prims(t, s, o, d, t_min, t_max),
+            Accel::BruteForce(shapes) => {
+                closest_hit_brute_force_shapes(&shapes.as_shapes(), o, d, t_min, t_max)
+            }
         };
         let mut hit = cast(0.0);
         if self.tables.has_cutouts() {

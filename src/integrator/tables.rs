@@ -1,10 +1,14 @@
 //! The scene as the engines read it: per-primitive and per-material
 //! columns, gathered 1 or 8 lanes at a time, and the surface at a hit
 //! ([`SurfaceHit`]) made from them. Primitives are numbered as hits
-//! number them: the triangles, then the spheres.
+//! number them: the kinds one after the other, in the order of
+//! [`Kinds`] (the triangles, then the spheres). Each kind's normal at a
+//! hit comes from its [`Shape`] implementation; the tables name no kind
+//! but triangles, whose vertex attributes (normals, texture coordinates,
+//! colours, tangents) they keep.
 
+use crate::accel::shape::{Family, Kinds, Make, Shape, Shapes, VisitOne, kind_of};
 use crate::accel::simd::prefetch_lines;
-use crate::accel::sphere::hit_normal;
 use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::Surface;
 use crate::integrator::surface::SurfaceHit;
@@ -24,20 +28,20 @@ const BIG_TABLE: usize = 256 << 10;
 
 /// Shading data, one column per field.
 pub struct Tables {
-    /// Front-side unit normal of each triangle: x, y, z columns (spheres
-    /// have theirs computed at the hit: [`Tables::front_normal`]).
-    pub normals: [Vec<f32>; 3],
     /// Material index of each primitive.
     pub material_of: Vec<u32>,
-    /// Index of the first sphere among the primitives (the number of
-    /// triangles).
-    pub first_sphere: usize,
-    /// Center of each sphere.
-    pub sphere_center: Vec<V3<f32>>,
+    /// Each kind's first primitive index.
+    firsts: [usize; Shapes::COUNT],
+    /// Each kind's [`Shape::Surface`] data, per primitive of the kind.
+    surfaces: Kinds<SurfacesOf>,
+    /// Whether some primitive's front normal is not flat
+    /// ([`Shape::flat_normal`]): computed at each hit.
+    curved: bool,
     /// Emitted radiance of each material.
     pub emission: Vec<[f32; 3]>,
     /// Per primitive, what a bounce reads of it, in one row of eight
-    /// (front normal x, y, z — zero for spheres —, the diffuse BRDF
+    /// (front normal x, y, z — zero where not flat, as a sphere's —, the
+    /// diffuse BRDF
     /// `reflectance / π` of its material, R, G, B, the material's index
     /// (its bits), and its [`Scene::primitive_scale`]): eight
     /// rows load as eight vectors and transpose into columns
@@ -119,9 +123,8 @@ pub struct Tables {
 impl Tables {
     /// The tables of `scene`.
     pub fn new(scene: &Scene) -> Self {
-        let materials: Vec<u32> = (scene.triangles.iter().map(|t| t.material))
-            .chain(scene.spheres.iter().map(|s| s.material))
-            .collect();
+        let kinds = KindTables::of(scene);
+        let materials = kinds.materials;
         let brdf = |m: &u32| scene.materials[*m as usize].reflectance / PI;
         let emits: Vec<bool> = (materials.iter())
             .map(|&m| scene.materials[m as usize].emission != glam::Vec3::ZERO)
@@ -136,9 +139,9 @@ impl Tables {
         let surfaces: Vec<Surface<f32>> = scene.materials.iter().map(Surface::of).collect();
         let tint = |s: &Surface<f32>| [s.tint.x, s.tint.y, s.tint.z];
         Self {
-            normals: [0, 1, 2].map(|c| scene.triangles.iter().map(|t| t.normal[c]).collect()),
-            first_sphere: scene.triangles.len(),
-            sphere_center: scene.spheres.iter().map(|s| V3::from(s.center)).collect(),
+            firsts: kinds.firsts,
+            surfaces: kinds.surfaces,
+            curved: kinds.curved,
             emission: scene
                 .materials
                 .iter()
@@ -149,10 +152,7 @@ impl Tables {
             emitting_first: span.start as u32,
             rows: (materials.iter().enumerate())
                 .map(|(p, m)| {
-                    let n = scene
-                        .triangles
-                        .get(p)
-                        .map_or(glam::Vec3::ZERO, |t| t.normal);
+                    let n = kinds.flat_normals[p];
                     let f = brdf(m);
                     let m = f32::from_bits(*m);
                     let s = scene.primitive_scale(p);
@@ -233,8 +233,10 @@ impl Tables {
     }
 
     /// The surface where the ray `(o, d)` hits primitive `prim` at
-    /// distance `t`: a triangle's normal (and, if smooth, its interpolated
-    /// vertex normals), or a sphere's radius through the hit.
+    /// distance `t`: its kind's front normal there
+    /// ([`Shape::front_normal`]: a triangle's normal, a sphere's radius
+    /// through the hit) and, if smooth, a triangle's interpolated vertex
+    /// normals.
     #[inline(always)]
     pub fn surface(&self, prim: usize, (o, d): (V3<f32>, V3<f32>), t: f32) -> SurfaceHit<f32> {
         let ng = self.front_normal(prim, o, d, t);
@@ -261,7 +263,7 @@ impl Tables {
         t: f32x8,
     ) -> SurfaceHit<f32x8> {
         let [nx, ny, nz, _, _, _, material, scale] = self.rows_8(prims);
-        let ng = self.sphere_normals(prims, V3::new(nx, ny, nz), (o, d), t);
+        let ng = self.curved_normals(prims, V3::new(nx, ny, nz), (o, d), t);
         let shading = self.has_smooth().then(|| {
             let p = hit_point(o, d, t);
             self.shading_normals(prims, ng, p)
@@ -288,7 +290,7 @@ impl Tables {
     /// The texture coordinates (sets 0 and 1) of primitive `prim` at its
     /// point `p`: a triangle's vertex coordinates interpolated at the
     /// barycentric coordinates of `p` (as [`Scene::texcoords`] has them),
-    /// zero for spheres.
+    /// zero for the other kinds.
     #[inline(always)]
     pub fn texcoords(&self, prim: usize, p: V3<f32>) -> [[f32; 2]; 2] {
         match self.uv.get(prim) {
@@ -301,37 +303,41 @@ impl Tables {
     }
 
     /// The front (outward) unit normal of primitive `prim` where the ray
-    /// `o + t·d` hits it: a triangle's own normal, or a sphere's radius
-    /// through the hit ([`hit_normal`], as the reference tracer has it).
+    /// `o + t·d` hits it: its kind's [`Shape::front_normal`] (a triangle's
+    /// own normal, or a sphere's radius through the hit, as the reference
+    /// tracer has it).
     #[inline(always)]
     pub fn front_normal(&self, prim: usize, o: V3<f32>, d: V3<f32>, t: f32) -> V3<f32> {
-        match prim.checked_sub(self.first_sphere) {
-            None => V3::new(
-                self.normals[0][prim],
-                self.normals[1][prim],
-                self.normals[2][prim],
-            ),
-            Some(k) => hit_normal(o, d, t, self.sphere_center[k]),
-        }
+        let (kind, i) = kind_of(prim, &self.firsts);
+        let visit = FrontNormal { i, o, d, t };
+        let n = self.surfaces.by_kind(kind, visit);
+        n.expect("a primitive is of a kind")
     }
 
-    /// The triangles' front normals `n` of eight lanes, with the lanes
-    /// that hit spheres replaced by theirs ([`front_normal`](Self::front_normal)).
+    /// The front normals `n` of eight lanes (from the rows: flat ones),
+    /// with the lanes whose primitives' normals are not flat replaced by
+    /// theirs ([`front_normal`](Self::front_normal)).
     #[inline(always)]
-    fn sphere_normals(
+    fn curved_normals(
         &self,
         prims: &[usize; 8],
         n: Vec3x8,
         (o, d): (Vec3x8, Vec3x8),
         t: f32x8,
     ) -> Vec3x8 {
-        if self.sphere_center.is_empty() {
+        if !self.curved {
             return n;
         }
         let (o, d, t) = (lanes3(o), lanes3(d), t.to_array());
         replace_lanes(n, |l| {
-            let p = prims[l];
-            (p >= self.first_sphere).then(|| self.front_normal(p, o[l], d[l], t[l]))
+            let (kind, i) = kind_of(prims[l], &self.firsts);
+            let visit = CurvedNormal(FrontNormal {
+                i,
+                o: o[l],
+                d: d[l],
+                t: t[l],
+            });
+            self.surfaces.by_kind(kind, visit).flatten()
         })
     }
 
@@ -750,6 +756,100 @@ impl Tables {
     pub fn single_model(&self) -> Option<Model> {
         let first = *self.model.first()?;
         self.model.iter().all(|m| *m == first).then_some(first)
+    }
+}
+
+/// Each kind's [`Shape::Surface`] data, per primitive of the kind.
+struct SurfacesOf;
+
+impl Family for SurfacesOf {
+    type Of<S: Shape> = Vec<S::Surface>;
+}
+
+/// What [`Tables::new`] takes from each kind.
+struct KindTables {
+    /// Each primitive's material, kind after kind.
+    materials: Vec<u32>,
+    /// Each primitive's flat front normal (zero where it has none).
+    flat_normals: Vec<glam::Vec3>,
+    firsts: [usize; Shapes::COUNT],
+    surfaces: Kinds<SurfacesOf>,
+    curved: bool,
+}
+
+impl KindTables {
+    fn of(scene: &Scene) -> Self {
+        struct Gather<'a> {
+            scene: &'a Scene,
+            materials: Vec<u32>,
+            flat_normals: Vec<glam::Vec3>,
+            counts: [usize; Shapes::COUNT],
+            curved: bool,
+        }
+        impl Make<SurfacesOf> for Gather<'_> {
+            fn make<S: Shape>(&mut self) -> Vec<S::Surface> {
+                let surfaces = S::surfaces(self.scene);
+                self.counts[S::KIND as usize] = surfaces.len();
+                self.materials.extend(S::materials(self.scene));
+                for s in &surfaces {
+                    let flat = S::flat_normal(s);
+                    self.curved |= flat.is_none();
+                    self.flat_normals.push(flat.unwrap_or(glam::Vec3::ZERO));
+                }
+                surfaces
+            }
+        }
+        let mut g = Gather {
+            scene,
+            materials: Vec::new(),
+            flat_normals: Vec::new(),
+            counts: [0; Shapes::COUNT],
+            curved: false,
+        };
+        let surfaces = Kinds::new(&mut g);
+        let counts = g.counts;
+        let mut firsts = [0; Shapes::COUNT];
+        for (k, f) in firsts.iter_mut().enumerate() {
+            *f = counts[..k].iter().sum();
+        }
+        Self {
+            materials: g.materials,
+            flat_normals: g.flat_normals,
+            firsts,
+            surfaces,
+            curved: g.curved,
+        }
+    }
+}
+
+/// [`Shape::front_normal`] of a kind's primitive `i` at the hit `t` of the
+/// ray `o + t·d`.
+struct FrontNormal {
+    i: usize,
+    o: V3<f32>,
+    d: V3<f32>,
+    t: f32,
+}
+
+impl VisitOne<SurfacesOf> for FrontNormal {
+    type Out = V3<f32>;
+    #[inline(always)]
+    fn visit<S: Shape>(self, surfaces: &Vec<S::Surface>) -> V3<f32> {
+        S::front_normal(&surfaces[self.i], self.o, self.d, self.t)
+    }
+}
+
+/// [`FrontNormal`] where the kind's normal is not flat, else `None`.
+struct CurvedNormal(FrontNormal);
+
+impl VisitOne<SurfacesOf> for CurvedNormal {
+    type Out = Option<V3<f32>>;
+    #[inline(always)]
+    fn visit<S: Shape>(self, surfaces: &Vec<S::Surface>) -> Option<V3<f32>> {
+        let s = &surfaces[self.0.i];
+        S::flat_normal(s)
+            .is_none()
+            .then(|| S::front_normal(s, self.0.o, self.0.d, self.0.t))
     }
 }
 

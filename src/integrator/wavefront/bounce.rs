@@ -130,8 +130,7 @@ mod tests {
                 // The same row, bounced by the scalar (f32) routine.
                 let tri = before.hit[i] as usize;
                 let col = |c: &[Vec<f32>; 3]| V3::new(c[0][i], c[1][i], c[2][i]);
-                let of_tri = |c: &[Vec<f32>; 3]| V3::new(c[0][tri], c[1][tri], c[2][tri]);
-                let normal = of_tri(&tables.normals);
+                let normal = V3::from(scene.triangles[tri].normal);
                 let material = &scene.materials[scene.triangles[tri].material as usize];
                 let brdf = V3::from(material.reflectance / std::f32::consts::PI);
                 let mut path = before.sampler[i];
