@@ -270,7 +270,10 @@ macro_rules! kinds {
 
 kinds!(0 triangles: TriangleEdges, 1 spheres: Sphere);
 
-const _: () = assert!(Kinds::<Owned>::COUNT <= 3, "a leaf has two bits for its kind");
+const _: () = assert!(
+    Kinds::<Owned>::COUNT <= 3,
+    "a leaf has two bits for its kind"
+);
 
 /// Each kind's primitives, borrowed: `Kinds<Slices<'a>>` ([`Shapes`]).
 pub struct Slices<'a>(std::marker::PhantomData<&'a ()>);
@@ -317,6 +320,16 @@ impl OwnedShapes {
 }
 
 impl<'a> Shapes<'a> {
+    /// Triangles and spheres, and no primitive of any other kind.
+    pub fn triangles_and_spheres(triangles: &'a [TriangleEdges], spheres: &'a [Sphere]) -> Self {
+        #[allow(clippy::needless_update, reason = "kinds added later are empty here")]
+        Self {
+            triangles,
+            spheres,
+            ..Self::default()
+        }
+    }
+
     /// The number of primitives of every kind together.
     pub fn len(&self) -> usize {
         struct Count(usize);

@@ -301,8 +301,10 @@ pub fn intersect_packed(
 ///
 /// Primitive indices: triangle `i` is `i`, sphere `j` is
 /// `tris.len() + j`. The answer is the smallest `(t, index)` with
-/// `t_min < t < t_max`: the triangles by [`closest_hit_brute_force`], then
-/// each sphere by [`intersect_sphere`] when strictly closer (on equal `t`
+/// `t_min < t < t_max`:
+/// [`closest_hit_brute_force_shapes`](crate::accel::shape::closest_hit_brute_force_shapes)
+/// over these two kinds (each triangle by Möller–Trumbore, then each
+/// sphere by [`intersect_sphere`], kept when strictly closer: on equal `t`
 /// the lower index, which came first, stays).
 pub fn closest_hit_brute_force_prims(
     tris: &[TriangleEdges],
@@ -312,10 +314,7 @@ pub fn closest_hit_brute_force_prims(
     t_min: f32,
     t_max: f32,
 ) -> Option<Hit> {
-    let shapes = Shapes {
-        triangles: tris,
-        spheres,
-    };
+    let shapes = Shapes::triangles_and_spheres(tris, spheres);
     crate::accel::shape::closest_hit_brute_force_shapes(&shapes, o, d, t_min, t_max)
 }
 

@@ -648,4 +648,3 @@ fn parallelogram_partners(
     }
     partner
 }
-

@@ -32,8 +32,8 @@
 use super::environment::EnvLight;
 use super::punctual::Punctual;
 use crate::accel::shape::{AreaShape, Family, Kinds, Make, Shape, Shapes, Visit};
-pub use crate::accel::triangle::square_to_triangle;
 use crate::accel::triangle::TriangleEdges;
+pub use crate::accel::triangle::square_to_triangle;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use wide::f32x8;

@@ -7,7 +7,7 @@
 //! structure-of-arrays form, so one ray is tested against all eight boxes
 //! with a handful of AVX2 instructions. A child reference is a node, a
 //! leaf, or nothing; a leaf's reference carries its primitive kind (its
-//! number, [`Kind::KIND`](crate::accel::shape::Kind::KIND)) and its run of
+//! number, [`Kind::KIND`]) and its run of
 //! 1 to [`MAX_LEAF_PACKS`] packs in that kind's pack list. Every kind
 //! ([`Shape`]) comes in packs of 8 or 16 ([`SimdWidth`]), tested by its own
 //! kernel ([`ShapePack`](crate::accel::shape::ShapePack)): triangles by
@@ -348,12 +348,7 @@ impl Bvh {
     ///
     /// With 2^29 or more primitives in all.
     pub fn build_prims(tris: &[TriangleEdges], spheres: &[Sphere], options: &BvhOptions) -> Bvh {
-        let shapes = Shapes {
-            triangles: tris,
-            spheres,
-            ..Shapes::default()
-        };
-        Self::build_shapes(&shapes, options)
+        Self::build_shapes(&Shapes::triangles_and_spheres(tris, spheres), options)
     }
 
     /// Build the hierarchy over the primitives of every kind: hits report

@@ -47,11 +47,7 @@ impl Child {
         );
         debug_assert!((1..=Self::MAX_LEAF_PACKS).contains(&count));
         debug_assert!((kind as usize) < MAX_KINDS);
-        Child(
-            LEAF | (kind << KIND_SHIFT)
-                | (((count - 1) as u32) << COUNT_SHIFT)
-                | first as u32,
-        )
+        Child(LEAF | (kind << KIND_SHIFT) | (((count - 1) as u32) << COUNT_SHIFT) | first as u32)
     }
 
     /// Whether this is an inner node.

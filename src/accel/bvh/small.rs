@@ -461,10 +461,7 @@ mod tests {
 
     /// Triangles alone.
     fn only(tris: &[TriangleEdges]) -> Shapes<'_> {
-        Shapes {
-            triangles: tris,
-            spheres: &[],
-        }
+        Shapes::triangles_and_spheres(tris, &[])
     }
 
     fn cornell() -> Vec<TriangleEdges> {
@@ -515,10 +512,7 @@ mod tests {
         for (tris, spheres) in &scenes {
             let rays = test_rays(tris, &mut u);
             for width in SimdWidth::available() {
-                let shapes = Shapes {
-                    triangles: tris,
-                    spheres,
-                };
+                let shapes = Shapes::triangles_and_spheres(tris, spheres);
                 for bvh in candidates(&shapes, width) {
                     built += 1;
                     split += usize::from(bvh.first_pack_count() > 0);
@@ -588,10 +582,7 @@ mod tests {
             let (o, d) = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
             for width in SimdWidth::available() {
                 let params = BuildParams::for_lanes(width.lanes());
-                let shapes = Shapes {
-                    triangles: tris,
-                    spheres: &[],
-                };
+                let shapes = Shapes::triangles_and_spheres(tris, &[]);
                 let mut bvh = Bvh::assemble(&shapes, &[], width, &params);
                 for (first, g) in packet_candidates(tris) {
                     plans += 1;
@@ -646,10 +637,7 @@ mod tests {
         let bvh = build(&only(&cornell), SimdWidth::W8);
         assert_eq!((bvh.node_count(), bvh.first_pack_count()), (0, 0));
         let (tris, spheres) = scene("scenes/cornell-obj.toml");
-        let shapes = Shapes {
-            triangles: &tris,
-            spheres: &spheres,
-        };
+        let shapes = Shapes::triangles_and_spheres(&tris, &spheres);
         let bvh = build(&shapes, SimdWidth::W8);
         assert!(bvh.first_pack_count() > 0, "the crate's room is split off");
         assert_eq!(bvh.node_count(), 1);

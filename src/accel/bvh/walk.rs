@@ -77,8 +77,7 @@ pub(crate) trait Query<R: Lanes> {
     /// ends the walk (the answer is known). `in_order`: these are all the
     /// packs the walk tests, in increasing index order (a tree of one
     /// leaf).
-    fn leaf<P: ShapePack<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool)
-    -> bool;
+    fn leaf<P: ShapePack<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool) -> bool;
     /// The answer, once the walk is over.
     fn output(&self) -> Self::Output;
     /// Called at every inner node visited (for statistics).
@@ -125,12 +124,7 @@ impl<R: Lanes> Query<R> for Closest<R> {
         self.cull
     }
     #[inline(always)]
-    fn leaf<P: ShapePack<R>>(
-        &mut self,
-        r: &PackRay<R>,
-        packs: &[Pack<P>],
-        in_order: bool,
-    ) -> bool {
+    fn leaf<P: ShapePack<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool) -> bool {
         let (o, d, t_min) = r.wide();
         // The running best in registers (stored once, after the packs).
         let mut best = self.best;
@@ -625,12 +619,7 @@ impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
         self.q.cull()
     }
     #[inline(always)]
-    fn leaf<P: ShapePack<R>>(
-        &mut self,
-        r: &PackRay<R>,
-        packs: &[Pack<P>],
-        in_order: bool,
-    ) -> bool {
+    fn leaf<P: ShapePack<R>>(&mut self, r: &PackRay<R>, packs: &[Pack<P>], in_order: bool) -> bool {
         self.stats.leaves += 1;
         self.stats.packs += packs.len() as u64;
         self.q.leaf(r, packs, in_order)
