@@ -1,6 +1,6 @@
-//! Shape kinds behind one trait, [`Shape`], and the one list of the kinds
-//! there are ([`Kinds`], made by the `kinds!` line at the end of this
-//! file).
+//! Shape kinds behind one trait, [`Shape`], and the machinery of the one
+//! list of the kinds there are ([`Kinds`], made by the `kinds!` line of
+//! `accel/mod.rs`).
 //!
 //! A kind is everything the renderer needs of a primitive, in one place:
 //! how the scene lists it ([`Shape::in_scene`], [`Shape::materials`]), its
@@ -20,14 +20,14 @@
 //! first kind's primitives, then the second's, ...).
 //!
 //! Adding a kind: its file (the type, its [`Shape`] implementation and its
-//! pack), a `mod` line in `accel/mod.rs` and its entry in the `kinds!`
-//! list below; in the scene layer, its type and list in `Scene`, a
-//! `SceneBuilder` method and its front-end table
-//! (`docs/architecture.md` counts the files).
+//! pack), and in `accel/mod.rs` its `mod` line and its entry in the
+//! `kinds!` list; in the scene layer, its type and list in `Scene` (with
+//! its arms of the per-primitive methods), a `SceneBuilder` method and its
+//! front-end table (`docs/architecture.md` counts the files).
 
+pub use super::Kinds;
+use crate::accel::hit::{Hit, PackHits};
 use crate::accel::simd::Lanes;
-use crate::accel::sphere::Sphere;
-use crate::accel::triangle::{PackHits, TriangleEdges};
 use crate::math::{Real, V3};
 use crate::scene::Scene;
 use glam::{Vec3, Vec3A};
@@ -190,12 +190,13 @@ pub trait Make<F: Family> {
     fn make<S: Shape>(&mut self) -> F::Of<S>;
 }
 
-/// Defines [`Kinds`] from the list of kinds: `number field: Type`.
+/// Defines [`Kinds`] from the list of kinds, `number field: Type, ...`
+/// (invoked once, in `accel/mod.rs`).
 macro_rules! kinds {
     ($($kind:literal $field:ident: $ty:ty),* $(,)?) => {
         /// One value per shape kind (of the type `F` says), in the order
         /// of the kinds.
-        pub struct Kinds<F: Family> {
+        pub struct Kinds<F: $crate::accel::shape::Family> {
             $(
                 #[doc = concat!("Kind ", stringify!($kind), ": `", stringify!($ty), "`.")]
                 pub $field: F::Of<$ty>,
@@ -203,35 +204,35 @@ macro_rules! kinds {
         }
 
         $(
-            impl Kind for $ty {
+            impl $crate::accel::shape::Kind for $ty {
                 const KIND: u32 = $kind;
                 #[inline(always)]
-                fn of<F: Family>(k: &Kinds<F>) -> &F::Of<Self> {
+                fn of<F: $crate::accel::shape::Family>(k: &Kinds<F>) -> &F::Of<Self> {
                     &k.$field
                 }
             }
         )*
 
-        impl<F: Family> Kinds<F> {
+        impl<F: $crate::accel::shape::Family> Kinds<F> {
             /// The number of kinds.
             pub const COUNT: usize = [$($kind),*].len();
 
             /// Each kind's entry, made by `m` in the kinds' order.
             #[inline(always)]
-            pub fn new(m: &mut impl Make<F>) -> Self {
+            pub fn new(m: &mut impl $crate::accel::shape::Make<F>) -> Self {
                 Self { $($field: m.make::<$ty>(),)* }
             }
 
             /// Visit every kind in order until `v` returns `true`; whether
             /// it did.
             #[inline(always)]
-            pub fn any(&self, v: &mut impl Visit<F>) -> bool {
+            pub fn any(&self, v: &mut impl $crate::accel::shape::Visit<F>) -> bool {
                 $(v.visit::<$ty>(&self.$field))||*
             }
 
             /// Visit kind number `kind` (`None` for no kind).
             #[inline(always)]
-            pub fn by_kind<V: VisitOne<F>>(&self, kind: u32, v: V) -> Option<V::Out> {
+            pub fn by_kind<V: $crate::accel::shape::VisitOne<F>>(&self, kind: u32, v: V) -> Option<V::Out> {
                 match kind {
                     $($kind => Some(v.visit::<$ty>(&self.$field)),)*
                     _ => None,
@@ -239,7 +240,7 @@ macro_rules! kinds {
             }
         }
 
-        impl<F: Family> Clone for Kinds<F>
+        impl<F: $crate::accel::shape::Family> Clone for Kinds<F>
         where
             $(F::Of<$ty>: Clone,)*
         {
@@ -248,16 +249,16 @@ macro_rules! kinds {
             }
         }
 
-        impl<F: Family> Debug for Kinds<F>
+        impl<F: $crate::accel::shape::Family> std::fmt::Debug for Kinds<F>
         where
-            $(F::Of<$ty>: Debug,)*
+            $(F::Of<$ty>: std::fmt::Debug,)*
         {
             fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
                 f.debug_struct("Kinds")$(.field(stringify!($field), &self.$field))*.finish()
             }
         }
 
-        impl<F: Family> Default for Kinds<F>
+        impl<F: $crate::accel::shape::Family> Default for Kinds<F>
         where
             $(F::Of<$ty>: Default,)*
         {
@@ -268,7 +269,7 @@ macro_rules! kinds {
     };
 }
 
-kinds!(0 triangles: TriangleEdges, 1 spheres: Sphere);
+pub(crate) use kinds;
 
 const _: () = assert!(
     Kinds::<Owned>::COUNT <= 3,
@@ -320,16 +321,6 @@ impl OwnedShapes {
 }
 
 impl<'a> Shapes<'a> {
-    /// Triangles and spheres, and no primitive of any other kind.
-    pub fn triangles_and_spheres(triangles: &'a [TriangleEdges], spheres: &'a [Sphere]) -> Self {
-        #[allow(clippy::needless_update, reason = "kinds added later are empty here")]
-        Self {
-            triangles,
-            spheres,
-            ..Self::default()
-        }
-    }
-
     /// The number of primitives of every kind together.
     pub fn len(&self) -> usize {
         struct Count(usize);
@@ -395,14 +386,14 @@ pub fn closest_hit_brute_force_shapes(
     d: Vec3,
     t_min: f32,
     t_max: f32,
-) -> Option<crate::accel::triangle::Hit> {
+) -> Option<Hit> {
     struct Brute {
         o: V3<f32>,
         d: V3<f32>,
         t_min: f32,
         t_max: f32,
         first: u32,
-        best: Option<crate::accel::triangle::Hit>,
+        best: Option<Hit>,
     }
     impl<'a> Visit<Slices<'a>> for Brute {
         fn visit<S: Shape>(&mut self, list: &&'a [S]) -> bool {
@@ -410,7 +401,7 @@ pub fn closest_hit_brute_force_shapes(
                 let limit = self.best.map_or(self.t_max, |h| h.t);
                 let (hit, t) = s.intersect(self.o, self.d, self.t_min);
                 if hit && t < limit {
-                    self.best = Some(crate::accel::triangle::Hit {
+                    self.best = Some(Hit {
                         triangle: self.first + j as u32,
                         t,
                     });

@@ -6,6 +6,7 @@
 //! tested in, so every intersector — scalar brute force, 8-wide packs, a
 //! hierarchy — returns the same triangle and the same `t`, bit for bit.
 
+pub use crate::accel::hit::{Hit, LaneHits, NO_PRIM, PackHits};
 use crate::accel::shape::{AreaEmitter, AreaShape, Shape, ShapePack};
 use crate::accel::simd::Lanes;
 use crate::math::{Real, V3};
@@ -111,24 +112,6 @@ impl From<&TriangleEdges> for V3Tri<f32> {
             n: t.n.into(),
         }
     }
-}
-
-/// The primitive index that stands for "nothing hit" in
-/// [`PackHits::closest_below`] and
-/// [`Bvh::closest_hits_into`](crate::accel::bvh::Bvh::closest_hits_into).
-pub const NO_PRIM: u32 = u32::MAX;
-
-/// The closest hit of one ray: primitive index and distance.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    /// Index of the primitive hit: triangles first, then spheres. Triangle
-    /// `i` is `i`; in a hierarchy built with spheres
-    /// ([`Bvh::build_prims`](crate::accel::bvh::Bvh::build_prims)), sphere
-    /// `j` is `T + j` with `T` the number of triangles. (The name is from
-    /// when triangles were the only primitive.)
-    pub triangle: u32,
-    /// Distance along the (unit) ray direction.
-    pub t: f32,
 }
 
 /// Scalar brute force over all triangles: the plainest closest-hit query.
@@ -270,73 +253,6 @@ pub struct TrianglePack<R: Lanes> {
 
 /// Eight triangles in one pack: the 8-lane (AVX2) kernel's unit.
 pub type Triangle8 = TrianglePack<f32x8>;
-
-/// The running closest hit of one ray, per lane, while packs are tested.
-#[derive(Clone, Copy, Debug)]
-pub struct PackHits<R: Lanes> {
-    /// Best distance per lane (the ray's `t_max` where nothing was hit).
-    pub t: R,
-    /// Triangle index per lane (`i32::MAX` where nothing was hit).
-    pub index: R::Index,
-}
-
-impl<R: Lanes> PackHits<R> {
-    /// Keep, lane by lane, the hit `(t, index)` where `hit` is set and it
-    /// is smaller than the best so far — by `t`, then by index, unless
-    /// `IN_INDEX_ORDER` (the caller tests primitives in increasing index
-    /// order, so an equal `t` never wins). Every pack kernel ends here.
-    #[inline(always)]
-    pub fn keep<const IN_INDEX_ORDER: bool>(&mut self, hit: R::Mask, t: R, index: R::Index) {
-        let closer = if IN_INDEX_ORDER {
-            hit & t.lt(self.t)
-        } else {
-            let idx_lt = R::index_lt(index, self.index);
-            hit & (t.lt(self.t) | (t.eq(self.t) & idx_lt))
-        };
-        self.t = R::select(closer, t, self.t);
-        self.index = R::index_select(closer, index, self.index);
-    }
-}
-
-/// [`PackHits`] for 8 lanes.
-pub type LaneHits = PackHits<f32x8>;
-
-impl<R: Lanes> PackHits<R> {
-    /// No hit yet: every lane at `t_max`.
-    #[inline(always)]
-    pub fn new(t_max: f32) -> Self {
-        Self {
-            t: R::splat(t_max),
-            index: R::index_splat(i32::MAX),
-        }
-    }
-
-    /// The smallest `(t, index)` over the lanes, if any lane hit.
-    ///
-    /// Branch-free: the smallest `t`, then the smallest index among the
-    /// lanes holding it. Lanes that hit nothing hold `t_max` (which no hit
-    /// reaches) and index `i32::MAX`.
-    #[inline(always)]
-    pub fn closest(&self) -> Option<Hit> {
-        let t = self.t.min_lane();
-        let index = self.t.min_index_at(t, self.index);
-        (index != i32::MAX).then_some(Hit {
-            triangle: index as u32,
-            t,
-        })
-    }
-
-    /// [`PackHits::closest`] below `t_max` as a plain pair, without a
-    /// branch: `(t, index)`, or `(t, NO_PRIM)` where no lane holds a hit
-    /// closer than `t_max` (a lane can hold one at exactly `t_max`: an
-    /// equal `t` with a lower index wins in [`PackHits::keep`]).
-    #[inline(always)]
-    pub fn closest_below(&self, t_max: f32) -> (f32, u32) {
-        let t = self.t.min_lane();
-        let index = self.t.min_index_at(t, self.index);
-        (t, if t < t_max { index as u32 } else { NO_PRIM })
-    }
-}
 
 impl<R: Lanes> TrianglePack<R> {
     /// Pack up to [`Lanes::LANES`] triangles with their indices.

@@ -244,19 +244,8 @@ fn load_asset(path: &Path) -> Result<(Scene, Vec3, Vec3)> {
             None,
         )?
     };
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for t in &scene.triangles {
-        for v in t.v {
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
-    }
-    for s in &scene.spheres {
-        lo = lo.min(s.center - Vec3::splat(s.radius));
-        hi = hi.max(s.center + Vec3::splat(s.radius));
-    }
-    if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
+    let (lo, hi) = scene.bounds();
+    if scene.primitive_count() == 0 || !(lo.is_finite() && hi.is_finite()) {
         return Err(Error::Settings(format!(
             "{}: nothing to render",
             path.display()

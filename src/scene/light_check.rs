@@ -4,7 +4,6 @@
 //! rather than after.
 
 use super::{Integrator, Scene};
-use glam::Vec3;
 
 /// What is wrong with a scene's lights.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,54 +94,29 @@ impl Scene {
             return None;
         }
         let emits = |m: u32| self.materials[m as usize].is_emissive();
-        let triangles: Vec<usize> = (0..self.triangles.len())
-            .filter(|&i| emits(self.triangles[i].material))
+        let all = self.primitive_count();
+        let emitters: Vec<usize> = (0..all)
+            .filter(|&i| emits(self.primitive_material(i)))
             .collect();
-        let spheres: Vec<usize> = (0..self.spheres.len())
-            .filter(|&i| emits(self.spheres[i].material))
-            .collect();
-        let emitters = triangles.len() + spheres.len();
-        if emitters == 0 {
+        if emitters.is_empty() {
             return Some(LightWarning::NoLight);
         }
-        if emitters > MAX_EMITTERS_CHECKED {
+        if emitters.len() > MAX_EMITTERS_CHECKED {
             return None;
         }
         let eps = 1e-6 * self.extent();
-        let faces_something = |front: &dyn Fn(Vec3, f32) -> bool,
-                               skip_triangle: Option<usize>,
-                               skip_sphere: Option<usize>| {
-            let by_triangles = self
-                .triangles
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| Some(*i) != skip_triangle)
-                .any(|(_, t)| t.v.iter().any(|&p| front(p, 0.0)));
-            by_triangles
-                || self
-                    .spheres
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| Some(*i) != skip_sphere)
-                    .any(|(_, s)| front(s.center, s.radius))
+        // Some point of another primitive in front of emitter `i`.
+        let faces_something = |i: usize| {
+            (0..all)
+                .filter(|&j| j != i)
+                .any(|j| self.primitive_balls(j).any(|b| self.in_front_of(i, b, eps)))
         };
-        let any_triangle = triangles.iter().any(|&i| {
-            let t = &self.triangles[i];
-            // A point (or a ball of radius r about it) in front of the plane.
-            let front = |p: Vec3, r: f32| t.normal.dot(p - t.v[0]) + r > eps;
-            faces_something(&front, Some(i), None)
-        });
-        let any_sphere = || {
-            spheres.iter().any(|&i| {
-                let s = &self.spheres[i];
-                let front = |p: Vec3, r: f32| (p - s.center).length() + r > s.radius + eps;
-                faces_something(&front, None, Some(i))
-            })
-        };
-        if any_triangle || any_sphere() {
+        if emitters.iter().any(|&i| faces_something(i)) {
             None
         } else {
-            Some(LightWarning::FacesNothing { emitters })
+            Some(LightWarning::FacesNothing {
+                emitters: emitters.len(),
+            })
         }
     }
 }
@@ -199,7 +173,7 @@ mod tests {
         let mut scene = floor_and_light(UP, "[30.0, 30.0, 30.0]");
         let lamp = scene.triangles.last().unwrap().material;
         scene.spheres.push(crate::scene::Sphere {
-            center: Vec3::new(0.0, 1.0, 0.0),
+            center: glam::Vec3::new(0.0, 1.0, 0.0),
             radius: 0.5,
             material: lamp,
         });

@@ -386,6 +386,45 @@ impl Scene {
             .fold(1.0, f32::max)
     }
 
+    /// The number of primitives of every kind (triangles, then spheres,
+    /// as hits number them).
+    pub fn primitive_count(&self) -> usize {
+        self.triangles.len() + self.spheres.len()
+    }
+
+    /// The material of primitive `i` (triangles, then spheres).
+    pub fn primitive_material(&self, i: usize) -> u32 {
+        match self.triangles.get(i) {
+            Some(t) => t.material,
+            None => self.spheres[i - self.triangles.len()].material,
+        }
+    }
+
+    /// Balls (center, radius) that hold primitive `i`'s points, for the
+    /// light check ([`Scene::light_warning`]): a triangle's vertices
+    /// (radius 0), a sphere itself.
+    pub fn primitive_balls(&self, i: usize) -> impl Iterator<Item = (Vec3, f32)> + '_ {
+        let (triangle, sphere) = match self.triangles.get(i) {
+            Some(t) => (Some(t), None),
+            None => (None, Some(&self.spheres[i - self.triangles.len()])),
+        };
+        let vertices = triangle.into_iter().flat_map(|t| t.v.map(|v| (v, 0.0)));
+        vertices.chain(sphere.map(|s| (s.center, s.radius)))
+    }
+
+    /// Whether some point of the ball of center `p` and radius `r` lies
+    /// more than `eps` in front of primitive `i`'s front (emitting) side:
+    /// in front of a triangle's plane, outside a sphere.
+    pub fn in_front_of(&self, i: usize, (p, r): (Vec3, f32), eps: f32) -> bool {
+        match self.triangles.get(i) {
+            Some(t) => t.normal.dot(p - t.v[0]) + r > eps,
+            None => {
+                let s = &self.spheres[i - self.triangles.len()];
+                (p - s.center).length() + r > s.radius + eps
+            }
+        }
+    }
+
     /// The scale of primitive `i` (triangles, then spheres, as hits number
     /// them): the largest absolute coordinate of a triangle's vertices, or
     /// of a sphere's points (`|center| + radius`, per axis). What the
