@@ -422,3 +422,29 @@ pub fn closest_hit_brute_force_shapes(
     shapes.any(&mut b);
     b.best
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A global primitive index names its kind and its index among the
+    /// kind's, also where a kind has no primitives.
+    #[test]
+    fn kind_of_splits_global_indices_by_kind() {
+        let n = Shapes::COUNT;
+        let firsts = |counts: [usize; Shapes::COUNT]| -> [usize; Shapes::COUNT] {
+            std::array::from_fn(|k| counts[..k].iter().sum())
+        };
+        for counts in [[5, 3], [0, 4], [7, 0], [1, 1]] {
+            let mut counts_n = [0; Shapes::COUNT];
+            counts_n[..2].copy_from_slice(&counts);
+            let f = firsts(counts_n);
+            let mut want = Vec::new();
+            for (k, &c) in counts_n.iter().enumerate() {
+                want.extend((0..c).map(|i| (k as u32, i)));
+            }
+            let got: Vec<(u32, usize)> = (0..want.len()).map(|p| kind_of(p, &f)).collect();
+            assert_eq!(got, want, "counts {counts:?} of {n} kinds");
+        }
+    }
+}

@@ -1160,6 +1160,85 @@ mod tests {
         }
     }
 
+    /// Emitters of two kinds (the Cornell box's quad light and two
+    /// emissive spheres) sampled eight lanes at a time, the lanes' kinds
+    /// mixed: each lane's point is the one lane's, bit for bit, and lies
+    /// on its own emitter (on a sphere's surface; in a triangle's plane),
+    /// with the normal of its kind there.
+    #[test]
+    fn mixed_kinds_sample_each_lanes_own_emitter() {
+        let mut scene = Scene::cornell();
+        let lamp = (scene.triangles.iter())
+            .map(|t| t.material)
+            .find(|&m| scene.materials[m as usize].emission != Vec3::ZERO)
+            .expect("the Cornell box has a light");
+        let spheres = [
+            (Vec3::new(0.2, -0.3, 0.1), 0.2),
+            (Vec3::new(-0.5, 0.4, -0.2), 0.1),
+        ];
+        for (center, radius) in spheres {
+            scene.spheres.push(crate::scene::Sphere {
+                center,
+                radius,
+                material: lamp,
+            });
+        }
+        let lights = Lights::new(&scene);
+        assert!(
+            lights.mixed && lights.len() == 3,
+            "{} emitters",
+            lights.len()
+        );
+        let mut rng = PathRng::new(9, 9, 9);
+        let mut on_sphere = 0;
+        for _ in 0..1000 {
+            let u: [[f32; 2]; 8] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
+            let o: [Vec3; 8] = std::array::from_fn(|_| {
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 1.6 - 0.8
+            });
+            let col = |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn::<f32, 8, _>(f));
+            let o8 = V3::new(col(&|l| o[l].x), col(&|l| o[l].y), col(&|l| o[l].z));
+            let u8 = [col(&|l| u[l][0]), col(&|l| u[l][1])];
+            let p8 = lights.sample_8(o8, u8, 8);
+            for (l, &u) in u.iter().enumerate() {
+                let p = lights.sample(V3::from(o[l]), u).unwrap();
+                let lane = |v: f32x8| v.to_array()[l].to_bits();
+                let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+                let lane3 = |v: V3<f32x8>| [lane(v.x), lane(v.y), lane(v.z)];
+                assert_eq!(bits(p.point), lane3(p8.point), "lane {l}");
+                assert_eq!(bits(p.normal), lane3(p8.normal), "lane {l}");
+                let (point, normal) = (Vec3::from(p.point), Vec3::from(p.normal));
+                let prim = p.prim.to_bits() as usize;
+                match prim.checked_sub(scene.triangles.len()) {
+                    Some(k) => {
+                        on_sphere += 1;
+                        let (c, r) = spheres[k];
+                        assert!(
+                            ((point - c).length() - r).abs() < 1e-5,
+                            "{point} off sphere {k}"
+                        );
+                        assert!(
+                            (normal - (point - c) / r).length() < 1e-4,
+                            "normal {normal}"
+                        );
+                    }
+                    None => {
+                        let t = &scene.triangles[prim];
+                        assert!(
+                            t.normal.dot(point - t.v[0]).abs() < 1e-5,
+                            "{point} off the light"
+                        );
+                        assert_eq!(normal, t.normal);
+                    }
+                }
+            }
+        }
+        assert!(
+            (1000..7000).contains(&on_sphere),
+            "{on_sphere} of 8000 on spheres"
+        );
+    }
+
     #[test]
     fn power_heuristic_weights_sum_to_one() {
         for (a, b) in [(1.0, 1.0), (2.0, 0.5), (1e-3, 7.0)] {
