@@ -695,10 +695,13 @@ impl Lights {
     }
 
     /// Whether the scene has an environment with light, or punctual
-    /// lights: lights sampled after the emitters.
+    /// lights: lights sampled after the emitters, with running sums of
+    /// their own after the emitters'. (Read from the sums, not from the
+    /// environment's probability, which a scene of overflowing size makes
+    /// NaN: [`pick`](Self::pick) must never see a sum past the emitters.)
     #[inline]
     fn has_extras(&self) -> bool {
-        self.environment_probability > 0.0 || !self.punctual.is_empty()
+        self.cdf.len() > self.emitters.len()
     }
 
     /// Whether rays that leave the scene can see something: an
@@ -873,6 +876,37 @@ mod tests {
         for c in counts {
             assert!((c as f64 - mean).abs() < 4.0 * sigma, "{counts:?}");
         }
+    }
+
+    /// A scene whose size overflows `f32` (two tiny triangles at ±3·10³⁸,
+    /// nothing emitting) under a sky: the sky's power is infinite and its
+    /// probability NaN. Drawing a light point gives NaN numbers (samples
+    /// that the film refuses), never a panic: this panicked in
+    /// `pick` (`emitters[0]` of none) when the extras were told by the
+    /// probability (found by tests/fuzz.rs's `hostile_gltf`).
+    #[test]
+    fn a_sky_over_a_scene_of_overflowing_size_is_sampled_without_panic() {
+        let mut scene = Scene::cornell();
+        for m in &mut scene.materials {
+            m.emission = Vec3::ZERO;
+        }
+        for (k, x) in [(0, 3e38f32), (1, -3e38)] {
+            let t = &mut scene.triangles[k];
+            t.v = [
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x, 1.0, 0.0),
+                Vec3::new(x, 0.0, 1.0),
+            ];
+        }
+        let sky = crate::scene::environment::EnvSource::Constant([1.0; 3]);
+        scene.environment =
+            Some(crate::scene::environment::Environment::load(&sky, 1.0, 0.0, true).unwrap());
+        let lights = Lights::new(&scene);
+        let o = V3::new(f32x8::splat(0.5), f32x8::splat(0.5), f32x8::splat(0.5));
+        let _ = lights.sample_8(o, [f32x8::splat(0.3), f32x8::splat(0.6)], 8);
+        let _ = lights.sample(V3::new(0.5, 0.5, 0.5), [0.3, 0.6]);
+        assert!(lights.environment_probability.is_nan());
+        assert!(!lights.is_empty() && lights.emitters.is_empty());
     }
 
     /// The Cornell box with its light's second triangle given its own
