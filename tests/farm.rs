@@ -590,28 +590,14 @@ fn the_kubernetes_views_example_runs_as_an_indexed_job() {
         &dir,
         &["views", p(&data.join("job.toml")), "--out-dir", "single"],
     );
-    /// Every file under `root` but the per-pod stats, by path.
-    fn files(root: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
-        let mut out = std::collections::BTreeMap::new();
-        let mut stack = vec![root.to_path_buf()];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let path = e.unwrap().path();
-                if path.is_dir() {
-                    stack.push(path);
-                } else if !path
-                    .file_name()
-                    .unwrap()
-                    .to_string_lossy()
-                    .starts_with("stats-")
-                {
-                    let bytes = std::fs::read(&path).unwrap();
-                    out.insert(path.strip_prefix(root).unwrap().to_path_buf(), bytes);
-                }
-            }
-        }
-        out
-    }
+    // Every file but the per-pod stats.
+    let files = |root: &Path| {
+        let mut all = common::tree(root);
+        all.retain(|path, _| {
+            !(path.file_name()).is_some_and(|n| n.to_string_lossy().starts_with("stats-"))
+        });
+        all
+    };
     let (pods, single) = (files(&data.join("out")), files(&dir.join("single")));
     assert_eq!(
         pods.keys().collect::<Vec<_>>(),

@@ -5,9 +5,8 @@
 
 mod common;
 
-use common::{TempDir, run, stderr, stdout};
+use common::{TempDir, run, stderr, stdout, tree};
 use glam::{Mat3, Vec3};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use wavetrace::render::Engine;
 use wavetrace::run::views::{ViewsOptions, ViewsReport, name_width};
@@ -251,25 +250,6 @@ fn camera_files_project_points_where_the_render_sees_them() {
 }
 
 /// Every file under `dir`, by relative path, with its bytes.
-fn tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
-        for e in std::fs::read_dir(dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(root, &p, out);
-            } else {
-                out.insert(
-                    p.strip_prefix(root).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(dir, dir, &mut out);
-    out
-}
-
 fn same_trees(a: &Path, b: &Path, what: &str) {
     let (ta, tb) = (tree(a), tree(b));
     assert_eq!(

@@ -868,7 +868,7 @@ pub fn run_suite(
             observer.progress(done, &format!("{}: {t} thread(s), setting up", w.name));
             let runner = prepared.runner(w, t)?;
             let mut seconds = Vec::new();
-            let mut counters = None;
+            let mut last = None;
             let mut stages = StageSeconds::default();
             let cpu_before = CpuTimes::now();
             for r in 0..repeats {
@@ -883,14 +883,14 @@ pub fn run_suite(
                 seconds.push(rendered.seconds);
                 triangles = rendered.triangles;
                 stages += rendered.stages;
-                counters = Some(rendered);
+                last = Some(rendered);
                 done += units(w, t);
                 observer.progress(done, w.name);
             }
             let others_cpu = cpu_before
                 .zip(CpuTimes::now())
                 .and_then(|(a, b)| a.others_share(&b));
-            let c = counters.expect("at least one repeat");
+            let c = last.expect("at least one repeat");
             let med = median(&seconds);
             let max = seconds.iter().copied().fold(f64::MIN, f64::max);
             let min = seconds.iter().copied().fold(f64::MAX, f64::min);
