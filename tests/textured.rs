@@ -1530,12 +1530,20 @@ fn alpha_and_object_ids_count_cut_outs_as_misses() {
                 continue;
             }
             let w = want[i];
-            assert_eq!(film.aov.alpha[i], w[1] + w[2], "{engine:?} pixel {i}");
+            assert_eq!(
+                film.aov.counts(Aov::Alpha)[i],
+                w[1] + w[2],
+                "{engine:?} pixel {i}"
+            );
             let counts: Vec<(u32, u64)> = [(1, w[1]), (2, w[2])]
                 .into_iter()
                 .filter(|c| c.1 > 0)
                 .collect();
-            assert_eq!(film.aov.objects[i], counts, "{engine:?} pixel {i}");
+            assert_eq!(
+                film.aov.votes(Aov::ObjectId)[i],
+                counts,
+                "{engine:?} pixel {i}"
+            );
         }
     }
 }
