@@ -1,7 +1,7 @@
 //! Auxiliary outputs (AOVs): what each one is, per camera sample.
 //!
 //! A render asks for any of them with `--aov albedo,normal,depth,variance`
-//! ([`AovSet`](crate::scene::AovSet); `--denoise` implies albedo and
+//! ([`AovSet`]; `--denoise` implies albedo and
 //! normal). An AOV is its row in [`Aov::def`] (its name, when a path
 //! records it, how its samples are summed, how it is written) and its arm
 //! of [`value`] here (what it records): adding one touches those two.
