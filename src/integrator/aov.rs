@@ -28,7 +28,9 @@
 //! - **albedo**: at the path's first *non-specular* vertex (a material
 //!   whose model is not a delta lobe: diffuse or metal; mirrors and glass
 //!   are followed, in the direction the path itself sampled there, as OIDN
-//!   expects), the material's reflectance clamped to [0, 1] ([`albedo`]).
+//!   expects), the material's reflectance times its base colour texture
+//!   and vertex colours there, clamped to [0, 1]
+//!   ([`Tables::albedo_at`]; [`albedo`] where nothing is textured).
 //!   Lights count as surfaces (their reflectance). A path with no
 //!   non-specular vertex — it escapes first, or reaches the maximum depth
 //!   (or is ended by Russian roulette) while every vertex so far was
@@ -135,7 +137,7 @@ impl<'a> Vertex<'a> {
 pub fn value(aov: Aov, v: &Vertex) -> [f32; 3] {
     let one = |x: f32| [x, 0.0, 0.0];
     match aov {
-        Aov::Albedo => v.tables.albedo[v.surface().material as usize],
+        Aov::Albedo => v.tables.albedo_at(v.surface()),
         Aov::Normal => {
             let n = v.surface().ns;
             [n.x, n.y, n.z]
