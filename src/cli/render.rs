@@ -620,8 +620,15 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
     let renderer = Renderer::new(&job.scene, s)?;
     if !quiet {
         let b = renderer.bvh();
+        let two_level = b.two_level().map_or(String::new(), |t| {
+            format!(
+                " (two-level: {} placements of {} unique triangles)",
+                t.instance_count(),
+                job.scene.instancing.unique_triangles()
+            )
+        });
         eprintln!(
-            "bvh: {} triangles, {} nodes, {:.1} MiB, built in {:.3} s",
+            "bvh: {} triangles{two_level}, {} nodes, {:.1} MiB, built in {:.3} s",
             b.triangle_count(),
             b.node_count(),
             b.bytes() as f64 / (1 << 20) as f64,
@@ -829,6 +836,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         packet_groups: renderer.bvh().packet_plan().map(|p| p.1),
         build_seconds: renderer.bvh().build_seconds(),
         bvh_bytes: renderer.bvh().bytes(),
+        bvh_instances: renderer.bvh().two_level().map_or(0, |t| t.instance_count()),
         partial: partial_written,
         reference: job
             .reference

@@ -130,6 +130,9 @@ pub struct RenderStats {
     pub build_seconds: f64,
     /// Memory held by the hierarchy's nodes and triangle packs, in bytes.
     pub bvh_bytes: usize,
+    /// Placements of meshes the hierarchy traces two-level (instancing):
+    /// 0 where it traces the flattened triangles.
+    pub bvh_instances: usize,
     /// What was written: the `--out` file (an image or a `.wtacc` partial
     /// file), or the `--write-partial` image when a signal stopped the
     /// render, or else the `--partial` file; null when nothing was.

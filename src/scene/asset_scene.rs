@@ -225,6 +225,12 @@ pub fn place(
     // One object per glTF node (its instances are consecutive), or one
     // for the whole asset when the loader has no nodes.
     let mut node = None;
+    // Meshes placed more than once are recorded for instancing.
+    let first_key = b.mesh_keys(asset.meshes.len());
+    let mut uses = vec![0u32; asset.meshes.len()];
+    for inst in &asset.instances {
+        uses[inst.mesh as usize] += 1;
+    }
     for (k, inst) in asset.instances.iter().enumerate() {
         let this = asset.instance_nodes.get(k).copied();
         if k == 0 || this != node {
@@ -240,7 +246,8 @@ pub fn place(
         let mesh = &asset.meshes[inst.mesh as usize];
         let transform = placement.map_or(inst.transform, |p| p * inst.transform);
         let material = mesh.material.map_or(default_material, |m| first + m);
-        b.instance(mesh, transform, material, at)?;
+        let key = (uses[inst.mesh as usize] > 1).then_some(first_key + inst.mesh);
+        b.instance(mesh, key, transform, material, at)?;
     }
     for light in &asset.lights {
         b.light(placement.map_or_else(|| light.clone(), |p| light.transformed(p)));

@@ -189,6 +189,14 @@ pub struct SceneBuilder {
     triangle_objects: Vec<u32>,
     sphere_objects: Vec<u32>,
     assets: super::AssetCounts,
+    /// The meshes placed so far by [`instance`](Self::instance) with a
+    /// key, and their placements that the flattening kept whole.
+    instancing: super::Instancing,
+    /// Per mesh key: its index in `instancing.meshes`, and which of its
+    /// triangles have an area in its own space.
+    mesh_keys: std::collections::HashMap<u32, (u32, Vec<bool>)>,
+    /// The next unused mesh key.
+    next_key: u32,
 }
 
 impl SceneBuilder {
@@ -216,7 +224,18 @@ impl SceneBuilder {
             triangle_objects: Vec::new(),
             sphere_objects: Vec::new(),
             assets: super::AssetCounts::default(),
+            instancing: super::Instancing::default(),
+            mesh_keys: std::collections::HashMap::new(),
+            next_key: 0,
         }
+    }
+
+    /// Reserves `n` mesh keys for [`instance`](Self::instance); returns
+    /// the first. One key names one mesh wherever it is placed.
+    pub fn mesh_keys(&mut self, n: usize) -> u32 {
+        let first = self.next_key;
+        self.next_key += n as u32;
+        first
     }
 
     /// The camera. A viewing direction that is zero or parallel to `up`
@@ -427,12 +446,76 @@ impl SceneBuilder {
     /// only) go with their vertices.
     /// Triangles of no area are skipped; a vertex the transform sends past
     /// `f32` is refused at `at`.
+    ///
+    /// `key` ([`mesh_keys`](Self::mesh_keys)) names the mesh: the
+    /// placements of one key are recorded in [`Scene::instancing`] (each
+    /// whose flattening kept the same triangles as the mesh has in its own
+    /// space), for the accelerator to trace two-level.
     pub fn instance(
+        &mut self,
+        mesh: &AssetMesh,
+        key: Option<u32>,
+        transform: Mat4,
+        material: u32,
+        at: &Origin,
+    ) -> Result<(), SceneError> {
+        let first = self.triangles.len();
+        let mut kept = Vec::new();
+        self.flatten(mesh, transform, material, at, &mut kept)?;
+        if let Some(key) = key {
+            self.record_placement(mesh, key, transform, first, &kept);
+        }
+        Ok(())
+    }
+
+    /// The placement of mesh `key` whose flattened triangles start at
+    /// `first`, `kept` saying which of the mesh's triangles the flattening
+    /// kept: recorded in the scene's instancing where the transform is
+    /// affine (with a [`PlacedMesh::remap`](super::PlacedMesh::remap)
+    /// where the flattening kept other triangles than those of area in the
+    /// mesh's own space).
+    fn record_placement(
+        &mut self,
+        mesh: &AssetMesh,
+        key: u32,
+        transform: Mat4,
+        first: usize,
+        kept: &[bool],
+    ) {
+        let inst = &mut self.instancing;
+        let (index, own) = self.mesh_keys.entry(key).or_insert_with(|| {
+            let v = |t: &[u32; 3]| t.map(|i| mesh.positions[i as usize]);
+            let own: Vec<bool> = (mesh.triangles.iter())
+                .map(|t| Triangle::ccw(v(t), 0).normal != Vec3::ZERO)
+                .collect();
+            let tris = (mesh.triangles.iter().zip(&own))
+                .filter(|(_, k)| **k)
+                .map(|(t, _)| v(t))
+                .collect();
+            inst.meshes.push(tris);
+            ((inst.meshes.len() - 1) as u32, own)
+        });
+        if transform.row(3) != glam::Vec4::W {
+            return; // (not affine: flattened)
+        }
+        inst.instances.push(super::PlacedMesh {
+            mesh: *index,
+            first: first as u32,
+            count: kept.iter().filter(|k| **k).count() as u32,
+            to_world: glam::Affine3A::from_mat4(transform),
+            remap: remap(own, kept, first as u32),
+        });
+    }
+
+    /// [`instance`](Self::instance)'s flattening: the mesh's triangles in
+    /// world space, `kept[j]` whether its triangle `j` was kept.
+    fn flatten(
         &mut self,
         mesh: &AssetMesh,
         transform: Mat4,
         material: u32,
         at: &Origin,
+        kept: &mut Vec<bool>,
     ) -> Result<(), SceneError> {
         let normal_matrix = Mat3::from_mat4(transform).inverse().transpose();
         let mirrored = Mat3::from_mat4(transform).determinant() < 0.0;
@@ -476,6 +559,7 @@ impl SceneBuilder {
             let [a, b, c] = t.map(|i| i as usize);
             let (b, c) = if mirrored { (c, b) } else { (b, c) };
             let tri = Triangle::ccw([world[a], world[b], world[c]], material);
+            kept.push(tri.normal != Vec3::ZERO);
             if tri.normal == Vec3::ZERO {
                 continue;
             }
@@ -596,6 +680,61 @@ impl SceneBuilder {
                 of_primitive,
             },
             assets: self.assets,
+            instancing: placed_twice(self.instancing),
         })
     }
+}
+
+/// `instancing` without the meshes placed (whole) fewer than twice: those
+/// are traced flattened.
+fn placed_twice(instancing: super::Instancing) -> super::Instancing {
+    let mut uses = vec![0usize; instancing.meshes.len()];
+    for p in &instancing.instances {
+        uses[p.mesh as usize] += 1;
+    }
+    let mut new_index = vec![u32::MAX; uses.len()];
+    let mut meshes = Vec::new();
+    for (k, mesh) in instancing.meshes.into_iter().enumerate() {
+        if uses[k] >= 2 {
+            new_index[k] = meshes.len() as u32;
+            meshes.push(mesh);
+        }
+    }
+    let instances = (instancing.instances.into_iter())
+        .filter(|p| uses[p.mesh as usize] >= 2)
+        .map(|p| super::PlacedMesh {
+            mesh: new_index[p.mesh as usize],
+            ..p
+        })
+        .collect();
+    super::Instancing { meshes, instances }
+}
+
+/// [`PlacedMesh::remap`](super::PlacedMesh::remap) of a placement whose
+/// flattened triangles start at `first`: `own[j]` whether the mesh's
+/// triangle `j` has an area in its own space (is in its tree), `kept[j]`
+/// whether the flattening kept it.
+fn remap(own: &[bool], kept: &[bool], first: u32) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    if own == kept {
+        return out;
+    }
+    let (mut local, mut global) = (0u32, first);
+    // What the last entry predicts for `local`: `first + local` at first.
+    let mut predicted = first;
+    for (&o, &k) in own.iter().zip(kept) {
+        if o {
+            if !k {
+                out.push((local, u32::MAX));
+            } else if global != predicted {
+                out.push((local, global));
+            }
+            predicted = if k { global + 1 } else { u32::MAX };
+            local += 1;
+        }
+        if k {
+            global += 1;
+        }
+    }
+    out
 }

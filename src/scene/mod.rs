@@ -3,7 +3,6 @@
 //! Scenes are read from TOML files ([`file`](mod@file)); the DH2323 Cornell box is
 //! built in ([`Scene::cornell`]) and is the default scene.
 
-pub mod aov;
 pub mod asset;
 pub mod asset_scene;
 pub mod builder;
@@ -26,11 +25,10 @@ pub mod views_job;
 use camera::Camera;
 use glam::Vec3;
 
-pub use aov::{Aov, AovDef, AovSet};
 pub use builder::{Origin, SceneBuilder, SceneError};
 pub use light_check::{LightWarning, UnreachedLights};
 pub use material::{Material, Model};
-pub use options::{Integrator, RenderOptions, SamplerKind};
+pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
@@ -266,6 +264,85 @@ pub struct Scene {
     pub objects: Objects,
     /// What its assets held before flattening.
     pub assets: AssetCounts,
+    /// The meshes its assets place more than once, and where
+    /// (the accelerator may trace them two-level).
+    pub instancing: Instancing,
+}
+
+/// The meshes an asset places more than once, kept once in their own
+/// (object) space, and their placements: what a two-level accelerator
+/// traces instead of the flattened triangles
+/// ([`accel::scene_bvh`](crate::accel::scene_bvh) decides by a counted
+/// rule). The flattened triangles stay in [`Scene::triangles`] (shading
+/// and lights read them): placement `p`'s triangle `j` is
+/// `triangles[p.global(j)]` (`p.first + j` but where the flattening kept
+/// other slivers), the mesh's triangle `j` placed by `p.to_world` (and
+/// wound the other way where it mirrors). Empty in a
+/// scene with no mesh placed twice.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Instancing {
+    /// Each mesh's triangles in its own space (the vertices as the file
+    /// has them, counter-clockwise from the front), those of no area left
+    /// out as the flattening leaves them out.
+    pub meshes: Vec<Vec<[Vec3; 3]>>,
+    /// The placements, in the order of their triangles.
+    pub instances: Vec<PlacedMesh>,
+}
+
+/// One placement of a mesh of [`Instancing`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlacedMesh {
+    /// Index into [`Instancing::meshes`].
+    pub mesh: u32,
+    /// The index in [`Scene::triangles`] of its first triangle.
+    pub first: u32,
+    /// How many triangles the flattening made of it (from `first` on).
+    pub count: u32,
+    /// Object to world.
+    pub to_world: glam::Affine3A,
+    /// Where the flattening kept other triangles than those of
+    /// [`Instancing::meshes`] (a sliver of no area in one space and some
+    /// in the other): empty where mesh triangle `j` is `first + j`; else
+    /// entries `(j, g)` in increasing `j`, each saying that from mesh
+    /// triangle `j` on (up to the next entry) triangle `j + i` is
+    /// `triangles[g + i]`, or, where `g` is `u32::MAX`, that triangle `j`
+    /// alone was left out of the flattening. Flattened triangles that no
+    /// mesh triangle names are traced as the rest of the scene is.
+    pub remap: Vec<(u32, u32)>,
+}
+
+impl PlacedMesh {
+    /// The index in [`Scene::triangles`] of mesh triangle `j` of this
+    /// placement, or `None` where the flattening left it out.
+    pub fn global(&self, j: u32) -> Option<u32> {
+        global_of(self.first, &self.remap, j)
+    }
+}
+
+/// [`PlacedMesh::global`] of a placement's `first` and `remap`.
+#[inline]
+pub fn global_of(first: u32, remap: &[(u32, u32)], j: u32) -> Option<u32> {
+    match remap.partition_point(|e| e.0 <= j).checked_sub(1) {
+        None => Some(first + j),
+        Some(k) => {
+            let (from, g) = remap[k];
+            // A left-out entry covers `from` alone: the next starts at
+            // `from + 1`.
+            (g != u32::MAX).then(|| g + (j - from))
+        }
+    }
+}
+
+impl Instancing {
+    /// Triangles counting each mesh once.
+    pub fn unique_triangles(&self) -> usize {
+        self.meshes.iter().map(Vec::len).sum()
+    }
+
+    /// Triangles counting each placement.
+    pub fn placed_triangles(&self) -> usize {
+        self.instances.iter().map(|p| p.count as usize).sum()
+    }
 }
 
 /// A scene's objects (what the object_id AOV tells apart): one per entry

@@ -76,10 +76,12 @@ pub mod build;
 mod node;
 mod packet;
 mod small;
+mod two_level;
 mod walk;
 
 pub use build::{BuildParams, BuildPrim, SAH_DEPTH_LIMIT};
 pub use node::MAX_KINDS;
+pub use two_level::{Placed, Placements, TwoLevel};
 pub use walk::{BATCH, WalkStats};
 
 use crate::accel::shape::{Family, Kind, Kinds, Make, Shape, Shapes, Slices, Visit, first_of};
@@ -317,6 +319,9 @@ pub struct Bvh {
     /// Each kind's number of primitives.
     counts: [usize; Shapes::COUNT],
     build_seconds: f64,
+    /// Instancing: where set, every query goes to this two-level
+    /// hierarchy instead (the fields above are empty).
+    two_level: Option<Box<TwoLevel>>,
 }
 
 impl Bvh {
@@ -398,6 +403,47 @@ impl Bvh {
         bvh
     }
 
+    /// The two-level hierarchy over `placements` (instancing: see
+    /// [`TwoLevel`]), answering every query of a [`Bvh`] with the global
+    /// primitive indices of the flattened scene; `counts` is each kind's
+    /// number of primitives there. `None` where a mesh has a primitive
+    /// with no finite box or a transform does not invert. Uses the current
+    /// rayon thread pool.
+    pub fn build_two_level(
+        placements: &Placements<'_>,
+        counts: [usize; Shapes::COUNT],
+        options: &BvhOptions,
+    ) -> Option<Bvh> {
+        let started = Instant::now();
+        let width = if options.width.is_available() {
+            options.width
+        } else {
+            SimdWidth::W8
+        };
+        let options = BvhOptions { width };
+        let two_level = TwoLevel::build(placements, &options)?;
+        Some(Bvh {
+            nodes: Vec::new(),
+            root: Child::EMPTY,
+            width,
+            packs8: Packs::default(),
+            #[cfg(target_arch = "x86_64")]
+            packs16: Packs::default(),
+            interleave: false,
+            in_order: false,
+            packets: packet::Plan::default(),
+            counts,
+            build_seconds: started.elapsed().as_secs_f64(),
+            two_level: Some(Box::new(two_level)),
+        })
+    }
+
+    /// The two-level hierarchy this one traces through, where it is one
+    /// (instancing).
+    pub fn two_level(&self) -> Option<&TwoLevel> {
+        self.two_level.as_deref()
+    }
+
     /// The hierarchy over `shapes` at `width`, built with `params`, but for
     /// the primitives in `first` (global indices, increasing: triangles,
     /// the first kind): those are tested before the walk, by every ray.
@@ -475,6 +521,7 @@ impl Bvh {
             packets: packet::Plan::default(),
             counts,
             build_seconds: 0.0,
+            two_level: None,
         };
         match width {
             SimdWidth::W8 => bvh.packs8 = Packs::build(&topo, shapes, &unbounded),
@@ -538,6 +585,9 @@ impl Bvh {
     /// [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)).
     #[inline(never)]
     pub fn closest_hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+        if let Some(two) = &self.two_level {
+            return as_hit(two.closest(o, d, t_min, t_max));
+        }
         as_hit(self.one::<ClosestKind>(o, d, t_min, t_max))
     }
 
@@ -546,6 +596,9 @@ impl Bvh {
     /// the first primitive found (for shadow rays).
     #[inline(never)]
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        if let Some(two) = &self.two_level {
+            return two.occluded(o, d, t_min, t_max);
+        }
         self.one::<AnyHitKind>(o, d, t_min, t_max)
     }
 
@@ -598,6 +651,14 @@ impl Bvh {
         t_max: f32,
         mut out: impl FnMut(usize, f32, u32),
     ) {
+        if let Some(two) = &self.two_level {
+            for i in 0..n {
+                let (o, d) = ray(i);
+                let (t, prim) = two.closest(o, d, t_min, t_max);
+                out(i, t, prim);
+            }
+            return;
+        }
         self.many::<ClosestKind>(
             n,
             #[inline(always)]
@@ -796,14 +857,22 @@ impl Bvh {
         n: usize,
         ray: impl Fn(usize) -> (Vec3, Vec3, f32),
         t_min: f32,
-        out: impl FnMut(usize, bool),
+        mut out: impl FnMut(usize, bool),
     ) {
+        if let Some(two) = &self.two_level {
+            for i in 0..n {
+                let (o, d, t_max) = ray(i);
+                out(i, two.occluded(o, d, t_min, t_max));
+            }
+            return;
+        }
         self.many::<AnyHitKind>(n, ray, t_min, true, out);
     }
 
     /// [`Bvh::closest_hit`] (`occlusion = false`) or [`Bvh::occluded`]
     /// (`true`), counting the nodes, leaves and packs the walk visits: for
-    /// tuning and benchmarks.
+    /// tuning and benchmarks (all zero for a two-level hierarchy, whose
+    /// walks are not counted).
     pub fn walk_stats(
         &self,
         o: Vec3,
@@ -840,8 +909,12 @@ impl Bvh {
         self.counts.iter().sum()
     }
 
-    /// Number of inner (8-wide) nodes.
+    /// Number of inner (8-wide) nodes (with instancing: of every tree,
+    /// the top level's binary nodes included).
     pub fn node_count(&self) -> usize {
+        if let Some(two) = &self.two_level {
+            return two.node_count();
+        }
         self.nodes.len()
     }
 
@@ -859,6 +932,9 @@ impl Bvh {
 
     /// Memory held by the nodes and the packs, in bytes.
     pub fn bytes(&self) -> usize {
+        if let Some(two) = &self.two_level {
+            return two.bytes();
+        }
         #[cfg(target_arch = "x86_64")]
         let p16 = self.packs16.bytes();
         #[cfg(not(target_arch = "x86_64"))]
