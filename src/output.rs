@@ -146,33 +146,25 @@ pub struct ExrLayer<'a> {
 }
 
 /// The albedo layer's name and channels in wavetrace's EXR images.
-pub const ALBEDO_LAYER: (&str, &[&str]) = ("albedo", &["R", "G", "B"]);
+pub const ALBEDO_LAYER: (&str, &[&str]) = Aov::Albedo.def().layer;
 /// The normal layer's name and channels in wavetrace's EXR images.
-pub const NORMAL_LAYER: (&str, &[&str]) = ("normal", &["X", "Y", "Z"]);
+pub const NORMAL_LAYER: (&str, &[&str]) = Aov::Normal.def().layer;
 /// The depth layer's name and channel in wavetrace's EXR images.
-pub const DEPTH_LAYER: (&str, &[&str]) = ("depth", &["Z"]);
+pub const DEPTH_LAYER: (&str, &[&str]) = Aov::Depth.def().layer;
 /// The variance layer's name and channels in wavetrace's EXR images.
-pub const VARIANCE_LAYER: (&str, &[&str]) = ("variance", &["R", "G", "B"]);
+pub const VARIANCE_LAYER: (&str, &[&str]) = Aov::Variance.def().layer;
 /// The alpha's channel in wavetrace's EXR images: `A`, no layer name.
-pub const ALPHA_LAYER: (&str, &[&str]) = ("", &["A"]);
+pub const ALPHA_LAYER: (&str, &[&str]) = Aov::Alpha.def().layer;
 /// The zdepth layer's name and channel in wavetrace's EXR images.
-pub const ZDEPTH_LAYER: (&str, &[&str]) = ("zdepth", &["Z"]);
+pub const ZDEPTH_LAYER: (&str, &[&str]) = Aov::ZDepth.def().layer;
 /// The object_id layer's name and channel in wavetrace's EXR images (a
 /// `u32` channel).
-pub const OBJECT_ID_LAYER: (&str, &[&str]) = ("object_id", &["id"]);
+pub const OBJECT_ID_LAYER: (&str, &[&str]) = Aov::ObjectId.def().layer;
 
 /// The EXR layer name and channels of an AOV (an empty name: channels of
 /// their own, the alpha's `A`).
 pub fn aov_layer(aov: Aov) -> (&'static str, &'static [&'static str]) {
-    match aov {
-        Aov::Albedo => ALBEDO_LAYER,
-        Aov::Normal => NORMAL_LAYER,
-        Aov::Depth => DEPTH_LAYER,
-        Aov::Variance => VARIANCE_LAYER,
-        Aov::Alpha => ALPHA_LAYER,
-        Aov::ZDepth => ZDEPTH_LAYER,
-        Aov::ObjectId => OBJECT_ID_LAYER,
-    }
+    aov.def().layer
 }
 
 /// The file an AOV of the PNG or PFM image `image` goes to: `STEM.NAME.pfm`

@@ -54,10 +54,22 @@ fn assert_same_film(a: &Film, b: &Film, what: &str) {
     assert_eq!(a.ranges, b.ranges, "{what}");
     assert_eq!(a.aovs(), b.aovs(), "{what}");
     assert!(a.sums == b.sums, "{what}: radiance sums differ");
-    assert!(a.aov.albedo == b.aov.albedo, "{what}: albedo sums differ");
-    assert!(a.aov.normal == b.aov.normal, "{what}: normal sums differ");
-    assert!(a.aov.depth == b.aov.depth, "{what}: depth sums differ");
-    assert!(a.aov.squares == b.aov.squares, "{what}: squares differ");
+    assert!(
+        a.aov.means(Aov::Albedo) == b.aov.means(Aov::Albedo),
+        "{what}: albedo sums differ"
+    );
+    assert!(
+        a.aov.means(Aov::Normal) == b.aov.means(Aov::Normal),
+        "{what}: normal sums differ"
+    );
+    assert!(
+        a.aov.hit_means(Aov::Depth) == b.aov.hit_means(Aov::Depth),
+        "{what}: depth sums differ"
+    );
+    assert!(
+        a.aov.squares(Aov::Variance) == b.aov.squares(Aov::Variance),
+        "{what}: squares differ"
+    );
     assert_eq!(a, b, "{what}");
 }
 
@@ -82,10 +94,22 @@ fn aovs_are_the_same_bits_across_threads_batches_passes_and_resumes() {
             let mut whole = one.new_film();
             one.render_samples(0..8, &mut whole);
             // Not vacuous: every AOV has non-zero sums.
-            assert!(whole.aov.albedo.iter().any(|s| s[0] > 0), "{what}");
-            assert!(whole.aov.normal.iter().any(|s| s[2] != 0), "{what}");
-            assert!(whole.aov.depth.iter().any(|d| d.hits > 0), "{what}");
-            assert!(whole.aov.squares.iter().any(|s| s[0] > 0), "{what}");
+            assert!(
+                whole.aov.means(Aov::Albedo).iter().any(|s| s[0] > 0),
+                "{what}"
+            );
+            assert!(
+                whole.aov.means(Aov::Normal).iter().any(|s| s[2] != 0),
+                "{what}"
+            );
+            assert!(
+                whole.aov.hit_means(Aov::Depth).iter().any(|d| d.hits > 0),
+                "{what}"
+            );
+            assert!(
+                whole.aov.squares(Aov::Variance).iter().any(|s| s[0] > 0),
+                "{what}"
+            );
             for threads in [2, 3] {
                 let (film, _, _) = at(threads, 4096).render();
                 assert_same_film(&whole, &film, &format!("{what}: {threads} threads"));
@@ -201,11 +225,29 @@ fn wavefront_aovs_equal_the_reference_tracers_on_every_scene() {
             Renderer::new(&scene, &s).unwrap().render().0
         };
         let (w, r) = (film(Engine::Wavefront), film(Engine::Reference));
-        assert!(w.aov.albedo == r.aov.albedo, "{name}: albedo differs");
-        assert!(w.aov.normal == r.aov.normal, "{name}: normal differs");
-        assert!(w.aov.depth == r.aov.depth, "{name}: depth differs");
-        assert!(w.aov.albedo.iter().any(|s| s[1] > 0), "{name}: no albedo");
-        for (i, (a, b)) in w.aov.squares.iter().zip(&r.aov.squares).enumerate() {
+        assert!(
+            w.aov.means(Aov::Albedo) == r.aov.means(Aov::Albedo),
+            "{name}: albedo differs"
+        );
+        assert!(
+            w.aov.means(Aov::Normal) == r.aov.means(Aov::Normal),
+            "{name}: normal differs"
+        );
+        assert!(
+            w.aov.hit_means(Aov::Depth) == r.aov.hit_means(Aov::Depth),
+            "{name}: depth differs"
+        );
+        assert!(
+            w.aov.means(Aov::Albedo).iter().any(|s| s[1] > 0),
+            "{name}: no albedo"
+        );
+        for (i, (a, b)) in w
+            .aov
+            .squares(Aov::Variance)
+            .iter()
+            .zip(r.aov.squares(Aov::Variance))
+            .enumerate()
+        {
             for c in 0..3 {
                 let (x, y) = (a[c] as f64, b[c] as f64);
                 assert!(
@@ -254,7 +296,11 @@ fn variance_equals_the_variance_of_per_sample_images() {
                 // Each sample's fixed-point value, as its film holds it.
                 let q: Vec<u128> = singles.iter().map(|f| f.sums[p][c]).collect();
                 let squares: u128 = q.iter().map(|&q| (q * q + (1 << 31)) >> 32).sum();
-                assert_eq!(film.aov.squares[p][c], squares, "pixel {p} channel {c}");
+                assert_eq!(
+                    film.aov.squares(Aov::Variance)[p][c],
+                    squares,
+                    "pixel {p} channel {c}"
+                );
                 assert_eq!(film.sums[p][c], q.iter().sum::<u128>());
                 let x: Vec<f64> = q.iter().map(|&q| q as f64 / FIXED_POINT_SCALE).collect();
                 let mean = x.iter().sum::<f64>() / n as f64;
@@ -356,7 +402,7 @@ fn depth_albedo_and_normal_of_a_plane_at_a_known_distance() {
                 let i = (y * 16 + x) as usize;
                 let z = depth[i][0] as f64;
                 assert_eq!(depth[i][0], depth[i][2]);
-                let hits = film.aov.depth[i].hits;
+                let hits = film.aov.hit_means(Aov::Depth)[i].hits;
                 if x <= 8 {
                     // Nearest point of [x, x+1] × [y, y+1] to (8, 6).
                     let near = t(
@@ -391,7 +437,7 @@ fn depth_albedo_and_normal_of_a_plane_at_a_known_distance() {
         }
         // Column 8 is cut by the edge: some of its samples hit, some not.
         let partial = (0..12)
-            .filter(|y| film.aov.depth[y * 16 + 8].hits < 6)
+            .filter(|y| film.aov.hit_means(Aov::Depth)[y * 16 + 8].hits < 6)
             .count();
         assert!(partial > 0, "{engine:?}: column 8 all hit");
     }

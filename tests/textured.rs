@@ -1530,12 +1530,20 @@ fn alpha_and_object_ids_count_cut_outs_as_misses() {
                 continue;
             }
             let w = want[i];
-            assert_eq!(film.aov.alpha[i], w[1] + w[2], "{engine:?} pixel {i}");
+            assert_eq!(
+                film.aov.counts(Aov::Alpha)[i],
+                w[1] + w[2],
+                "{engine:?} pixel {i}"
+            );
             let counts: Vec<(u32, u64)> = [(1, w[1]), (2, w[2])]
                 .into_iter()
                 .filter(|c| c.1 > 0)
                 .collect();
-            assert_eq!(film.aov.objects[i], counts, "{engine:?} pixel {i}");
+            assert_eq!(
+                film.aov.votes(Aov::ObjectId)[i],
+                counts,
+                "{engine:?} pixel {i}"
+            );
         }
     }
 }
@@ -1827,5 +1835,33 @@ fn bad_attenuation_is_refused_with_its_json_path() {
         let e = e.to_string();
         let want = format!("materials[0].extensions.KHR_materials_volume.{field}");
         assert!(e.contains(&want) && e.contains("bad.glb"), "{e}");
+    }
+}
+
+/// The albedo AOV is the textured colour at the hit, not the material's
+/// constant: on the checkerboard seen from above, 1 at the centres of the
+/// white cells and 0 at the black ones, in both engines.
+#[test]
+fn the_albedo_aov_is_the_base_colour_texture_at_the_hit() {
+    use wavetrace::scene::{Aov, AovSet};
+    let dir = TempDir::new("checker-albedo");
+    let scene = scene_of(&dir, "checker.glb", &checker_quad());
+    let n = 64;
+    let f = n as f32 / 2.0 / 30f32.to_radians().tan();
+    for engine in [Engine::Wavefront, Engine::Reference] {
+        let mut s = settings(&scene, n, n, 4);
+        (s.engine, s.aovs) = (engine, AovSet::of(&[Aov::Albedo]));
+        let film = render(&scene, &s);
+        let albedo = &film.aov_images()[0].1;
+        for j in 0..4 {
+            for i in 0..4 {
+                let x = -1.0 + (i as f32 + 0.5) / 2.0;
+                let z = -1.0 + (j as f32 + 0.5) / 2.0;
+                let (px, py) = (n as f32 / 2.0 + f * x / 2.0, n as f32 / 2.0 + f * z / 2.0);
+                let a = albedo[(py as u32 * n + px as u32) as usize];
+                let want = if (i + j) % 2 == 0 { 1.0 } else { 0.0 };
+                assert_eq!(a, [want; 3], "{engine:?} cell ({i}, {j})");
+            }
+        }
     }
 }

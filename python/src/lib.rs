@@ -21,9 +21,11 @@ use std::sync::{Mutex, mpsc};
 use std::time::Duration;
 use wavetrace::film::Film;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
+use wavetrace::scene::aov::Sum;
 use wavetrace::scene::camera::Camera as CoreCamera;
 use wavetrace::scene::environment::{EnvSource, overridden};
-use wavetrace::scene::options::{Aov, AovSet, Integrator, SamplerKind};
+use wavetrace::scene::options::{Integrator, SamplerKind};
+use wavetrace::scene::{Aov, AovSet};
 
 create_exception!(
     _wavetrace,
@@ -674,10 +676,10 @@ fn buffers_of(
         },
     )];
     for (aov, pixels) in aovs {
-        let (data, channels) = match aov {
-            Aov::Depth | Aov::ZDepth => (Data::F32(pixels.iter().map(|p| p[0]).collect()), 1),
+        let (data, channels) = match (aov.def().sum, aov.def().layer.1.len()) {
             // Exact: the film holds ids below 2²⁴.
-            Aov::ObjectId => (Data::U32(pixels.iter().map(|p| p[0] as u32).collect()), 1),
+            (Sum::Votes, _) => (Data::U32(pixels.iter().map(|p| p[0] as u32).collect()), 1),
+            (_, 1) => (Data::F32(pixels.iter().map(|p| p[0]).collect()), 1),
             _ => (Data::F32(pixels.into_iter().flatten().collect()), 3),
         };
         out.push((

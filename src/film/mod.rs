@@ -381,13 +381,13 @@ mod tests {
         let mut tiles = film.aov.tiles_mut(1, 2);
         assert_eq!(tiles.len(), 2);
         let mut s = [0; 3];
-        let sample = AovSample {
-            albedo: [0.5, 2.0, -1.0],
-            normal: [-1.0, 0.25, 1.5],
-            depth: 3.0,
-            zdepth: 2.5,
-            object: 7,
-        };
+        let mut sample = AovSample::NONE;
+        sample.set(Aov::Albedo, [0.5, 2.0, -1.0]);
+        sample.set(Aov::Normal, [-1.0, 0.25, 1.5]);
+        sample.set(Aov::Depth, [3.0, 0.0, 0.0]);
+        sample.set(Aov::Alpha, [1.0, 0.0, 0.0]);
+        sample.set(Aov::ZDepth, [2.5, 0.0, 0.0]);
+        sample.set(Aov::ObjectId, [f32::from_bits(7), 0.0, 0.0]);
         assert!(accumulate_with_aovs(
             &mut s,
             (&mut tiles[1], 0),
@@ -403,20 +403,45 @@ mod tests {
         drop(tiles);
         let q = 1u128 << 32;
         assert_eq!(s, [3 * q, q / 2, 0]);
-        let a = &film.aov;
-        assert_eq!(a.albedo, [[0; 3], [q / 2, q, 0]], "clamped to [0, 1]");
-        assert_eq!(a.normal, [[0; 3], [-(q as i128), q as i128 / 4, q as i128]]);
+        use aov::{Column, DepthSum};
+        let column = |a| film.aov.column(a).unwrap().clone();
+        let q = q as i128;
+        let mean = |v: [i128; 3]| Column::Mean(vec![[0; 3], v]);
         assert_eq!(
-            a.depth[1],
-            aov::DepthSum {
-                sum: 3 * q,
-                hits: 1
-            }
+            column(Aov::Albedo),
+            mean([q / 2, q, 0]),
+            "clamped to [0, 1]"
         );
-        assert_eq!(a.squares[1], [9 * q, q / 4, 0]);
-        assert_eq!(a.alpha, [0, 1], "one hit, one miss");
-        assert_eq!(a.zdepth[1].sum, 5 * q / 2);
-        assert_eq!(a.objects, [vec![], vec![(7, 1)]]);
+        assert_eq!(
+            column(Aov::Normal),
+            mean([-q, q / 4, q]),
+            "clamped to [-1, 1]"
+        );
+        let hits = |sum: i128| {
+            Column::HitMean(vec![
+                DepthSum::default(),
+                DepthSum {
+                    sum: sum as u128,
+                    hits: 1,
+                },
+            ])
+        };
+        assert_eq!(column(Aov::Depth), hits(3 * q));
+        assert_eq!(column(Aov::ZDepth), hits(5 * q / 2));
+        let q = q as u128;
+        assert_eq!(
+            column(Aov::Variance),
+            Column::Squares(vec![[0; 3], [9 * q, q / 4, 0]])
+        );
+        assert_eq!(
+            column(Aov::Alpha),
+            Column::Count(vec![0, 1]),
+            "one hit, one miss"
+        );
+        assert_eq!(
+            column(Aov::ObjectId),
+            Column::Votes(vec![vec![], vec![(7, 1)]])
+        );
         // (2^63 - 1)^2 / 2^32 = 2^94 - 2^32 + 2^-32, rounded: no overflow.
         assert_eq!(aov::square(u64::MAX >> 1), (1 << 94) - q);
         assert_eq!(aov::square(3 << 31), 9 << 30); // 1.5^2 = 2.25, exactly

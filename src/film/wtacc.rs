@@ -28,7 +28,7 @@
 //! A file of another version (a newer wavetrace's) is refused with a
 //! message that says so.
 
-use super::aov::{DepthSum, bytes_per_pixel, most};
+use super::aov::{Column, ReadError, bytes_per_pixel};
 use super::{AovSums, Film};
 use crate::fs::{FileError, write_atomic};
 use crate::scene::{Aov, AovSet};
@@ -82,39 +82,8 @@ impl Film {
                 bytes.extend_from_slice(&c.to_le_bytes());
             }
         }
-        let a = &self.aov;
-        for s in &a.albedo {
-            for c in s {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        for s in &a.normal {
-            for c in s {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        for d in &a.depth {
-            bytes.extend_from_slice(&d.sum.to_le_bytes());
-            bytes.extend_from_slice(&d.hits.to_le_bytes());
-        }
-        for s in &a.squares {
-            for c in s {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        for h in &a.alpha {
-            bytes.extend_from_slice(&h.to_le_bytes());
-        }
-        for d in &a.zdepth {
-            bytes.extend_from_slice(&d.sum.to_le_bytes());
-            bytes.extend_from_slice(&d.hits.to_le_bytes());
-        }
-        for counts in &a.objects {
-            bytes.extend_from_slice(&(counts.len() as u32).to_le_bytes());
-            for (id, count) in counts {
-                bytes.extend_from_slice(&id.to_le_bytes());
-                bytes.extend_from_slice(&count.to_le_bytes());
-            }
+        for (_, column) in &self.aov.columns {
+            column.write(&mut bytes);
         }
         let check = xxhash_rust::xxh3::xxh3_128(&bytes);
         bytes.extend_from_slice(&check.to_le_bytes());
@@ -281,74 +250,16 @@ impl Film {
         }
         let mut aov = AovSums {
             set: aovs,
-            ..AovSums::default()
+            columns: Vec::new(),
         };
         for kind in aovs.iter() {
-            if kind == Aov::ObjectId {
-                aov.objects = read_objects(rest, (pixels, w), held, &too_large)
-                    .map_err(|m| bad(m.message))?;
-                rest = &[];
-                break;
-            }
-            let (plane, tail) = rest.split_at(pixels * bytes_per_pixel(kind));
+            let (column, tail) = Column::read(kind, rest, pixels, held).map_err(|e| match e {
+                ReadError::TooLarge(i, what) => too_large(&what, i),
+                ReadError::Invalid(i, rule) => bad(format!("pixel ({}, {}): {rule}", i % w, i / w)),
+                ReadError::Truncated(what) => bad(what),
+            })?;
+            aov.columns.push((kind, column));
             rest = tail;
-            let bound = most(kind, held);
-            let article = if kind == Aov::Albedo { "an" } else { "a" };
-            let label = format!("{article} {} sum", kind.name());
-            match kind {
-                Aov::Albedo | Aov::Variance => {
-                    let mut col = Vec::with_capacity(pixels);
-                    for (i, p) in plane.chunks_exact(48).enumerate() {
-                        let s: [u128; 3] = std::array::from_fn(|c| u128_at(p, c * 16));
-                        if s.iter().any(|&c| c > bound) {
-                            return Err(too_large(&label, i));
-                        }
-                        col.push(s);
-                    }
-                    if kind == Aov::Albedo {
-                        aov.albedo = col;
-                    } else {
-                        aov.squares = col;
-                    }
-                }
-                Aov::Normal => {
-                    for (i, p) in plane.chunks_exact(48).enumerate() {
-                        let s: [i128; 3] = std::array::from_fn(|c| u128_at(p, c * 16) as i128);
-                        if s.iter().any(|&c| c.unsigned_abs() > bound) {
-                            return Err(too_large(&label, i));
-                        }
-                        aov.normal.push(s);
-                    }
-                }
-                Aov::Depth | Aov::ZDepth => {
-                    let mut col = Vec::with_capacity(pixels);
-                    for (i, p) in plane.chunks_exact(24).enumerate() {
-                        let d = DepthSum {
-                            sum: u128_at(p, 0),
-                            hits: u64::from_le_bytes(p[16..24].try_into().unwrap_or([0; 8])),
-                        };
-                        if d.hits > held || d.sum > most(kind, d.hits) {
-                            return Err(too_large(&label, i));
-                        }
-                        col.push(d);
-                    }
-                    if kind == Aov::Depth {
-                        aov.depth = col;
-                    } else {
-                        aov.zdepth = col;
-                    }
-                }
-                Aov::Alpha => {
-                    for (i, p) in plane.chunks_exact(8).enumerate() {
-                        let h = u64::from_le_bytes(p.try_into().unwrap_or([0; 8]));
-                        if h > held {
-                            return Err(too_large(&label, i));
-                        }
-                        aov.alpha.push(h);
-                    }
-                }
-                Aov::ObjectId => unreachable!("read above"),
-            }
         }
         debug_assert!(rest.is_empty());
         let film = Film {
@@ -380,62 +291,6 @@ impl Film {
         };
         Ok((film, meta))
     }
-}
-
-/// Read the object_id plane (`plane`, the rest of the file's data) of
-/// `pixels` pixels of `held` samples: each pixel's id count, then its
-/// `(id, count)` pairs. Refuses ids 0 or not ascending, counts of 0, a
-/// pixel whose counts sum beyond `held`, and a plane longer or shorter
-/// than its pixels. Nothing is allocated beyond what the plane holds.
-fn read_objects(
-    mut plane: &[u8],
-    (pixels, w): (usize, usize),
-    held: u64,
-    too_large: &dyn Fn(&str, usize) -> WtaccError,
-) -> Result<Vec<super::aov::ObjectCounts>, WtaccError> {
-    let short = || WtaccError {
-        path: PathBuf::new(),
-        message: "the object_id sums are truncated".into(),
-    };
-    let mut out = Vec::with_capacity(pixels.min(plane.len() / 4));
-    for i in 0..pixels {
-        let (n, tail) = plane.split_first_chunk::<4>().ok_or_else(short)?;
-        let n = u32::from_le_bytes(*n) as usize;
-        let bytes = n.checked_mul(12).filter(|&b| b <= tail.len());
-        let bytes = bytes.ok_or_else(short)?;
-        let (pairs, tail) = tail.split_at(bytes);
-        plane = tail;
-        let mut counts = Vec::with_capacity(n);
-        let mut total = 0u64;
-        for p in pairs.chunks_exact(12) {
-            let id = u32::from_le_bytes(p[..4].try_into().unwrap_or_default());
-            let count = u64::from_le_bytes(p[4..].try_into().unwrap_or_default());
-            let ascending = counts.last().is_none_or(|&(last, _)| id > last);
-            if id == 0 || count == 0 || !ascending {
-                return Err(WtaccError {
-                    path: PathBuf::new(),
-                    message: format!(
-                        "pixel ({}, {}): object_id counts must be of ids above 0, ascending, each at least 1",
-                        i % w,
-                        i / w
-                    ),
-                });
-            }
-            total = total.saturating_add(count);
-            if total > held {
-                return Err(too_large("an object_id count", i));
-            }
-            counts.push((id, count));
-        }
-        out.push(counts);
-    }
-    if !plane.is_empty() {
-        return Err(WtaccError {
-            path: PathBuf::new(),
-            message: format!("{} bytes after the object_id sums", plane.len()),
-        });
-    }
-    Ok(out)
 }
 
 /// The magic's first seven bytes; the eighth is the version.

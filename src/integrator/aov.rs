@@ -1,8 +1,11 @@
 //! Auxiliary outputs (AOVs): what each one is, per camera sample.
 //!
 //! A render asks for any of them with `--aov albedo,normal,depth,variance`
-//! ([`AovSet`](crate::scene::AovSet); `--denoise` implies albedo and
-//! normal). Each sample of a pixel records them along its own path, and
+//! ([`AovSet`]; `--denoise` implies albedo and
+//! normal). An AOV is its row in [`Aov::def`] (its name, when a path
+//! records it, how its samples are summed, how it is written) and its arm
+//! of [`value`] here (what it records): adding one touches those two.
+//! Each sample of a pixel records them along its own path, and
 //! the film sums them exactly, beside the radiance ([`crate::film::aov`]),
 //! so they are the same bits whatever the threads, batches, passes,
 //! resumes and shards. Both engines record them, each in its own code:
@@ -14,6 +17,9 @@
 //!   (`shade::record_aovs`) and added to the film with the radiance in
 //!   *retire*.
 //!
+//! Both call [`record`] at those vertices, so the values are the same
+//! function of the same hit.
+//!
 //! **Definitions.** A path's *vertices* are the surfaces its rays hit, the
 //! camera ray's hit being depth 0, up to the last depth the maximum depth
 //! allows (the hit there is a vertex even though the path scatters no
@@ -22,7 +28,9 @@
 //! - **albedo**: at the path's first *non-specular* vertex (a material
 //!   whose model is not a delta lobe: diffuse or metal; mirrors and glass
 //!   are followed, in the direction the path itself sampled there, as OIDN
-//!   expects), the material's reflectance clamped to [0, 1] ([`albedo`]).
+//!   expects), the material's reflectance times its base colour texture
+//!   and vertex colours there, clamped to [0, 1]
+//!   ([`Tables::albedo_at`]; [`albedo`] where nothing is textured).
 //!   Lights count as surfaces (their reflectance). A path with no
 //!   non-specular vertex — it escapes first, or reaches the maximum depth
 //!   (or is ended by Russian roulette) while every vertex so far was
@@ -66,8 +74,90 @@
 //! radiance, which the engines sum in a different order within a path
 //! (a few ulps apart).
 
-use crate::scene::Material;
+use super::surface::SurfaceHit;
+use super::tables::Tables;
+pub use crate::film::AovSample;
+use crate::math::V3;
+use crate::scene::aov::When;
+use crate::scene::{Aov, AovSet, Material};
 use glam::Vec3;
+use std::cell::OnceCell;
+
+/// A vertex of a path where AOVs are recorded: the ray `(o, d)` that hit
+/// primitive `prim` at distance `t`, and its surface, made when an AOV
+/// first asks for it.
+pub struct Vertex<'a> {
+    tables: &'a Tables,
+    prim: u32,
+    ray: (V3<f32>, V3<f32>),
+    t: f32,
+    /// The camera's forward axis (the zdepth's).
+    forward: Vec3,
+    surface: OnceCell<SurfaceHit<f32>>,
+}
+
+impl<'a> Vertex<'a> {
+    /// The vertex where `ray` hits primitive `prim` at distance `t`, in a
+    /// render whose camera looks along `forward`.
+    pub fn new(
+        tables: &'a Tables,
+        prim: u32,
+        ray: (V3<f32>, V3<f32>),
+        t: f32,
+        forward: Vec3,
+    ) -> Self {
+        Self {
+            tables,
+            prim,
+            ray,
+            t,
+            forward,
+            surface: OnceCell::new(),
+        }
+    }
+
+    /// [`Vertex::new`] with the surface already made (by
+    /// [`Tables::surface`] of the same hit).
+    pub fn with_surface(self, surface: SurfaceHit<f32>) -> Self {
+        Self {
+            surface: OnceCell::from(surface),
+            ..self
+        }
+    }
+
+    fn surface(&self) -> &SurfaceHit<f32> {
+        (self.surface).get_or_init(|| self.tables.surface(self.prim as usize, self.ray, self.t))
+    }
+}
+
+/// The value AOV `aov` records at vertex `v` (the vertex its
+/// [`When`] names), as the definitions above say; an id is the bits of
+/// the first channel. The variance records nothing (the film makes it).
+#[inline]
+pub fn value(aov: Aov, v: &Vertex) -> [f32; 3] {
+    let one = |x: f32| [x, 0.0, 0.0];
+    match aov {
+        Aov::Albedo => v.tables.albedo_at(v.surface()),
+        Aov::Normal => {
+            let n = v.surface().ns;
+            [n.x, n.y, n.z]
+        }
+        Aov::Depth => one(v.t),
+        Aov::Alpha => one(1.0),
+        Aov::ZDepth => one(zdepth(v.t, Vec3::from(v.ray.1), v.forward)),
+        Aov::ObjectId => one(f32::from_bits(v.tables.object_of(v.prim))),
+        Aov::Variance => aov.def().none,
+    }
+}
+
+/// Record in `sample` the values at `v` of the AOVs of `aovs` recorded
+/// `when`.
+#[inline]
+pub fn record(aovs: AovSet, when: When, v: &Vertex, sample: &mut AovSample) {
+    for aov in aovs.iter().filter(|a| a.def().when == when) {
+        sample.set(aov, value(aov, v));
+    }
+}
 
 /// The zdepth AOV of a camera ray of unit direction `d` that hit at
 /// distance `t`: the hit's distance along the camera's unit `forward`
@@ -76,8 +166,6 @@ use glam::Vec3;
 pub fn zdepth(t: f32, d: Vec3, forward: Vec3) -> f32 {
     t * d.dot(forward)
 }
-
-pub use crate::film::AovSample;
 
 /// The albedo AOV of a non-specular `material`: its reflectance, clamped
 /// to [0, 1] (what OIDN expects of an albedo buffer).

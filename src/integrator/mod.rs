@@ -78,14 +78,7 @@ impl TileJob<'_> {
     /// goes through [`add_sample`](Self::add_sample)).
     #[inline]
     pub fn has_aovs(&self) -> bool {
-        let a = &self.aov;
-        !(a.albedo.is_empty()
-            && a.normal.is_empty()
-            && a.depth.is_empty()
-            && a.squares.is_empty()
-            && a.alpha.is_empty()
-            && a.zdepth.is_empty()
-            && a.objects.is_empty())
+        !self.aov.is_empty()
     }
 
     /// Add a finished sample of pixel `pixel` (a row-major index within

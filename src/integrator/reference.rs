@@ -29,6 +29,7 @@ use crate::accel::bvh::Bvh;
 use crate::accel::shape::{OwnedShapes, closest_hit_brute_force_shapes};
 use crate::accel::triangle::Hit;
 use crate::film::{AovSample, accumulate};
+use crate::integrator::aov::{Vertex, record};
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{
     Estimator, connect_shaded, emission_weight, escaped, survival as survival_of,
@@ -38,8 +39,9 @@ use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::integrator::{Counters, TileJob};
 use crate::math::V3;
+use crate::scene::aov::When;
 use crate::scene::camera::RasterCamera;
-use crate::scene::{Integrator, Material, Scene};
+use crate::scene::{AovSet, Integrator, Material, Scene};
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -169,26 +171,28 @@ impl ReferenceTracer {
     }
 
     /// [`trace_path`](Self::trace_path) of a camera ray (depth 0) that
-    /// also records the sample's AOVs in `aov` ([`super::aov`]): the
-    /// camera ray's hit distance, and the albedo and shading normal of
-    /// the path's first non-specular vertex (left as they are where there
-    /// is none).
+    /// also records the sample's AOVs in `aov` ([`super::aov`]), for a
+    /// camera looking along `forward`: those of the camera ray's hit, and
+    /// those of the path's first non-specular vertex (left as they are
+    /// where there is none).
     pub fn trace_camera_path<S: Sampler>(
         &self,
         sampler: &S,
         path: &mut S::Path,
         ray: (Vec3, Vec3),
         counters: &mut Counters,
-        aov: &mut AovSample,
+        (aov, forward): (&mut AovSample, Vec3),
     ) -> Vec3 {
-        self.trace(sampler, path, ray, 0, (0.0, Vec3::ONE), counters, Some(aov))
+        let aov = Some((aov, forward));
+        self.trace(sampler, path, ray, 0, (0.0, Vec3::ONE), counters, aov)
     }
 
     /// [`trace_path`](Self::trace_path) for a ray drawn with density
     /// `bsdf_pdf` (0 for camera rays), by a path of throughput `beta` so
     /// far (what Russian roulette looks at). `aov`, while the path has met
-    /// only specular vertices, is where the AOVs of the sample go (`None`
-    /// once recorded, or when not asked for).
+    /// only specular vertices, is where the AOVs of the sample go, with
+    /// the camera's forward axis (`None` once recorded, or when not asked
+    /// for).
     #[allow(clippy::too_many_arguments)]
     fn trace<S: Sampler>(
         &self,
@@ -198,7 +202,7 @@ impl ReferenceTracer {
         depth: u32,
         (bsdf_pdf, beta): (f32, Vec3),
         counters: &mut Counters,
-        mut aov: Option<&mut AovSample>,
+        mut aov: Option<(&mut AovSample, Vec3)>,
     ) -> Vec3 {
         let est = &self.estimator;
         if depth >= est.max_depth {
@@ -219,18 +223,17 @@ impl ReferenceTracer {
         // transmittance weighs everything from here on.
         let absorbed = self.tables.transmittance(&s, hit.t).map(Vec3::from);
         let beta = absorbed.map_or(beta, |a| beta * a);
-        // AOVs: the camera ray's distance; the first non-specular vertex.
-        if depth == 0
-            && let Some(a) = aov.as_deref_mut()
-        {
-            a.depth = hit.t;
-            a.object = self.tables.object_of(hit.triangle);
-        }
-        if !material.model.is_delta()
-            && let Some(a) = aov.take()
-        {
-            a.albedo = super::aov::albedo(material).to_array();
-            a.normal = [s.ns.x, s.ns.y, s.ns.z];
+        // AOVs: at the camera ray's hit; at the first non-specular vertex.
+        if let Some((a, forward)) = aov.as_mut() {
+            let ray = (V3::from(o), V3::from(d));
+            let v = Vertex::new(&self.tables, hit.triangle, ray, hit.t, *forward).with_surface(s);
+            if depth == 0 {
+                record(AovSet::EVERY, When::CameraHit, &v, a);
+            }
+            if !material.model.is_delta() {
+                record(AovSet::EVERY, When::FirstNonSpecular, &v, a);
+                aov = None;
+            }
         }
         let mut radiance = if s.front {
             let cos_light = -Vec3::from(s.ng).dot(d);
@@ -336,10 +339,8 @@ impl ReferenceTracer {
         let mut path = sampler.start(camera.pixel_index(x, y), sample);
         let ray = camera.pixel_ray(x, y, sampler.next_2d(&mut path));
         let mut aov = AovSample::NONE;
-        let l = self.trace_camera_path(sampler, &mut path, ray, counters, &mut aov);
-        if aov.depth < f32::INFINITY {
-            aov.zdepth = super::aov::zdepth(aov.depth, ray.1, camera.forward());
-        }
+        let forward = camera.forward();
+        let l = self.trace_camera_path(sampler, &mut path, ray, counters, (&mut aov, forward));
         (l, aov)
     }
 

@@ -666,6 +666,46 @@ impl Tables {
         self.scattering_at(hit.prim as usize, hit.material, hit.uv, hit.p)
     }
 
+    /// Texture `t` at the texture coordinates `uv` (sets 0 and 1).
+    #[inline]
+    fn lookup(&self, t: &TextureRef, uv: [[f32; 2]; 2]) -> [f32; 4] {
+        let at = t.transform.apply(uv[(t.tex_coord as usize).min(1)]);
+        self.textures[t.texture as usize].sample(t.sampler, at[0], at[1])
+    }
+
+    /// What multiplies material `m`'s colour on primitive `prim` at the
+    /// point `p` of texture coordinates `uv`: its base colour texture
+    /// there times the triangle's vertex colours (1 without either).
+    #[inline]
+    fn colour_at(&self, prim: usize, m: &Material, uv: [[f32; 2]; 2], p: V3<f32>) -> glam::Vec3 {
+        let mut colour = glam::Vec3::ONE;
+        if let Some(t) = &m.maps.base_colour {
+            let c = self.lookup(t, uv);
+            colour = glam::Vec3::new(c[0], c[1], c[2]);
+        }
+        if let Some((v, c)) = self.colours.get(prim) {
+            let b = barycentric(*v, glam::Vec3::from(p));
+            let at = |k: usize| c[0][k] * b[0] + c[1][k] * b[1] + c[2][k] * b[2];
+            colour *= glam::Vec3::new(at(0), at(1), at(2));
+        }
+        colour
+    }
+
+    /// The albedo AOV at `hit` ([`crate::integrator::aov`]): its
+    /// material's reflectance times the base colour texture and vertex
+    /// colours there, clamped to [0, 1] (the material's
+    /// [`albedo`](Self::albedo) where nothing is looked up per hit).
+    pub fn albedo_at(&self, hit: &SurfaceHit<f32>) -> [f32; 3] {
+        let m = &self.materials[hit.material as usize];
+        if !self.is_textured(m.model) {
+            return self.albedo[hit.material as usize];
+        }
+        let colour = self.colour_at(hit.prim as usize, m, hit.uv, hit.p);
+        (m.reflectance * colour)
+            .clamp(glam::Vec3::ZERO, glam::Vec3::ONE)
+            .to_array()
+    }
+
     /// [`scattering`](Self::scattering) of primitive `prim` of material
     /// `material` at the point `p` of texture coordinates `uv`.
     #[inline]
@@ -680,20 +720,8 @@ impl Tables {
         if !self.is_textured(m.model) {
             return Surface::of(m);
         }
-        let lookup = |t: &TextureRef| {
-            let at = t.transform.apply(uv[(t.tex_coord as usize).min(1)]);
-            self.textures[t.texture as usize].sample(t.sampler, at[0], at[1])
-        };
-        let mut colour = glam::Vec3::ONE;
-        if let Some(t) = &m.maps.base_colour {
-            let c = lookup(t);
-            colour = glam::Vec3::new(c[0], c[1], c[2]);
-        }
-        if let Some((v, c)) = self.colours.get(prim) {
-            let b = barycentric(*v, glam::Vec3::from(p));
-            let at = |k: usize| c[0][k] * b[0] + c[1][k] * b[1] + c[2][k] * b[2];
-            colour *= glam::Vec3::new(at(0), at(1), at(2));
-        }
+        let lookup = |t: &TextureRef| self.lookup(t, uv);
+        let colour = self.colour_at(prim, m, uv, p);
         let (metal, rough) = match &m.maps.metallic_roughness {
             Some(t) => {
                 let c = lookup(t);

@@ -856,7 +856,7 @@ impl AssetWork<'_> {
     fn in_job_world(&self, aov: Aov, pixels: &[[f32; 3]], view: &View) -> Vec<[f32; 3]> {
         let (s, p) = (view.n.scale, view.pose);
         match aov {
-            Aov::Depth | Aov::ZDepth => pixels.iter().map(|d| [d[0] * s, d[1], d[2]]).collect(),
+            _ if aov.def().length => pixels.iter().map(|d| [d[0] * s, d[1], d[2]]).collect(),
             Aov::Normal if self.job.outputs.camera_normals => (pixels.iter())
                 .map(|n| {
                     let n = Vec3::from_array(*n);
@@ -873,31 +873,12 @@ impl AssetWork<'_> {
     fn write_aov(&self, path: &Path, aov: Aov, pixels: &[[f32; 3]]) -> Result<()> {
         let (w, h) = (self.job.render.width, self.job.render.height);
         let plane = |k: usize| pixels.iter().map(|v| v[k]).collect::<Vec<f32>>();
-        let (channels, note): (&[&str], &str) = match aov {
-            Aov::Depth => (
-                &["Z"],
-                "depth: distance from the camera centre along the ray to the first hit (not z), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
-            ),
-            Aov::ZDepth => (
-                &["Z"],
-                "zdepth: distance from the camera centre along the camera's forward (optical, OpenCV +z) axis to the first hit, = depth * cos(angle of the ray to that axis), mean over the pixel's samples that hit, +inf where none hit; the job's world units",
-            ),
-            Aov::Variance => (
-                &["R", "G", "B"],
-                "variance: unbiased sample variance of the radiance per channel (of one sample; the pixel mean's is this / spp), linear",
-            ),
-            Aov::Normal if self.job.outputs.camera_normals => (
-                &["X", "Y", "Z"],
-                "normal: shading normal at the first non-specular hit, camera axes (OpenCV: x right, y down, z forward), mean over samples, not renormalised, 0 where none",
-            ),
-            Aov::Normal => (
-                &["X", "Y", "Z"],
-                "normal: shading normal at the first non-specular hit, world axes, mean over samples, not renormalised, 0 where none",
-            ),
-            _ => (
-                &["R", "G", "B"],
-                "albedo: reflectance at the first non-specular hit, linear, mean over samples",
-            ),
+        let (_, channels) = aov.def().layer;
+        let note = match aov {
+            Aov::Normal if self.job.outputs.camera_normals => {
+                "normal: shading normal at the first non-specular hit, camera axes (OpenCV: x right, y down, z forward), mean over samples, not renormalised, 0 where none"
+            }
+            _ => aov.def().meaning,
         };
         let planes = (0..channels.len()).map(plane).collect();
         write_exr_channels(path, (w, h), channels, planes, note)

@@ -3,6 +3,7 @@
 //! Scenes are read from TOML files ([`file`](mod@file)); the DH2323 Cornell box is
 //! built in ([`Scene::cornell`]) and is the default scene.
 
+pub mod aov;
 pub mod asset;
 pub mod asset_scene;
 pub mod builder;
@@ -25,10 +26,11 @@ pub mod views_job;
 use camera::Camera;
 use glam::Vec3;
 
+pub use aov::{Aov, AovDef, AovSet};
 pub use builder::{Origin, SceneBuilder, SceneError};
 pub use light_check::{LightWarning, UnreachedLights};
 pub use material::{Material, Model};
-pub use options::{Aov, AovSet, Integrator, RenderOptions, SamplerKind};
+pub use options::{Integrator, RenderOptions, SamplerKind};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");

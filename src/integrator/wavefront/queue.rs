@@ -2,6 +2,7 @@
 
 use crate::film::AovSample;
 use crate::math::Vec3x8;
+use crate::scene::aov::When;
 use crate::scene::{Aov, AovSet};
 use wide::f32x8;
 
@@ -55,84 +56,62 @@ pub struct PathQueue<P> {
 
 /// The AOVs each path records on its way ([`crate::integrator::aov`]):
 /// set by the *shade* stage ([`super::shade::record_aovs`]), added to the
-/// film by *retire*.
+/// film by *retire*. One column per AOV a path records (the variance is
+/// the film's own).
 #[derive(Clone, Debug)]
 pub struct AovColumns {
-    /// Whether albedo or normal are wanted (else only depth is recorded).
+    /// Whether some AOV is recorded at the first non-specular vertex
+    /// ([`When::FirstNonSpecular`]).
     pub surface: bool,
-    /// 1 while the path has met no non-specular vertex (the albedo and
-    /// normal are still to be recorded), else 0.
+    /// 1 while the path has met no non-specular vertex (those AOVs are
+    /// still to be recorded), else 0.
     pub pending: Vec<u8>,
-    /// Albedo at the first non-specular vertex, R, G, B (0 until then).
-    pub albedo: [Vec<f32>; 3],
-    /// Facing shading normal there, x, y, z (0 until then).
-    pub normal: [Vec<f32>; 3],
-    /// The camera ray's hit distance (`+inf` if it hit nothing).
-    pub depth: Vec<f32>,
-    /// The camera ray's hit distance along the camera's forward axis
-    /// (`+inf` if it hit nothing).
-    pub zdepth: Vec<f32>,
-    /// The id of the object the camera ray hit (0 if none).
-    pub object: Vec<u32>,
+    /// Each recorded AOV's value per row (its `none` until recorded).
+    pub values: Vec<(Aov, Vec<[f32; 3]>)>,
 }
 
 impl AovColumns {
-    fn with_rows(rows: usize, surface: bool) -> Self {
-        let col = || vec![0.0f32; rows];
+    fn with_rows(rows: usize, aovs: AovSet) -> Self {
+        let recorded = aovs.iter().filter(|a| a.def().when != When::Radiance);
         Self {
-            surface,
+            surface: aovs.iter().any(|a| a.def().when == When::FirstNonSpecular),
             pending: vec![0; rows],
-            albedo: [col(), col(), col()],
-            normal: [col(), col(), col()],
-            depth: vec![f32::INFINITY; rows],
-            zdepth: vec![f32::INFINITY; rows],
-            object: vec![0; rows],
+            values: recorded.map(|a| (a, vec![a.def().none; rows])).collect(),
         }
     }
 
     /// Rows `rows` start new paths: nothing recorded yet.
     pub fn reset(&mut self, rows: std::ops::Range<usize>) {
         self.pending[rows.clone()].fill(1);
-        for col in self.albedo.iter_mut().chain(&mut self.normal) {
-            col[rows.clone()].fill(0.0);
+        for (aov, col) in &mut self.values {
+            col[rows.clone()].fill(aov.def().none);
         }
-        self.depth[rows.clone()].fill(f32::INFINITY);
-        self.zdepth[rows.clone()].fill(f32::INFINITY);
-        self.object[rows].fill(0);
     }
 
     /// Path `i`'s AOVs, for the film.
     #[inline]
     pub fn sample(&self, i: usize) -> AovSample {
-        AovSample {
-            albedo: self.albedo.each_ref().map(|c| c[i]),
-            normal: self.normal.each_ref().map(|c| c[i]),
-            depth: self.depth[i],
-            zdepth: self.zdepth[i],
-            object: self.object[i],
+        let mut sample = AovSample::NONE;
+        for (aov, col) in &self.values {
+            sample.set(*aov, col[i]);
         }
+        sample
     }
 
     #[inline]
     fn move_row(&mut self, from: usize, to: usize) {
         self.pending[to] = self.pending[from];
-        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+        for (_, col) in &mut self.values {
             col[to] = col[from];
         }
-        self.depth[to] = self.depth[from];
-        self.zdepth[to] = self.zdepth[from];
-        self.object[to] = self.object[from];
     }
 
     #[inline]
     fn swap_rows(&mut self, a: usize, b: usize) {
         self.pending.swap(a, b);
-        for col in self.albedo.iter_mut().chain(&mut self.normal) {
+        for (_, col) in &mut self.values {
             col.swap(a, b);
         }
-        self.depth.swap(a, b);
-        self.zdepth.swap(a, b);
-        self.object.swap(a, b);
     }
 }
 
@@ -165,9 +144,8 @@ impl<P: bytemuck::Pod> PathQueue<P> {
     /// variance, which needs none).
     pub fn with_aovs(n: usize, aovs: AovSet) -> Self {
         let mut q = Self::with_capacity(n);
-        let surface = aovs.contains(Aov::Albedo) || aovs.contains(Aov::Normal);
-        if !aovs.iter().all(|a| a == Aov::Variance) {
-            q.aov = Some(AovColumns::with_rows(q.capacity(), surface));
+        if aovs.iter().any(|a| a.def().when != When::Radiance) {
+            q.aov = Some(AovColumns::with_rows(q.capacity(), aovs));
         }
         q
     }
@@ -412,9 +390,9 @@ mod tests {
             let aov = with.aov.as_mut().unwrap();
             aov.reset(0..n);
             for i in 0..n {
-                aov.albedo[1][i] = i as f32;
-                aov.normal[2][i] = -(i as f32);
-                aov.depth[i] = 2.0 * i as f32;
+                for (a, col) in &mut aov.values {
+                    col[i] = [*a as usize as f32, i as f32, -(i as f32)];
+                }
                 aov.pending[i] = (i % 2) as u8;
             }
             with.swap_rows(0, n - 1);
@@ -425,10 +403,9 @@ mod tests {
             for r in 0..with.len() {
                 let i = with.pixel[r] as usize;
                 let a = with.aov_sample(r);
-                assert_eq!(
-                    (a.albedo[1], a.normal[2], a.depth),
-                    (i as f32, -(i as f32), 2.0 * i as f32)
-                );
+                for aov in [Aov::Albedo, Aov::Normal, Aov::Depth] {
+                    assert_eq!(a.get(aov), [aov as usize as f32, i as f32, -(i as f32)]);
+                }
                 assert_eq!(with.aov.as_ref().unwrap().pending[r], (i % 2) as u8);
             }
         }

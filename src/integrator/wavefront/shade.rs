@@ -2,11 +2,12 @@
 
 use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
-use crate::integrator::aov::zdepth;
+use crate::integrator::aov::{Vertex, value};
 use crate::integrator::nee::{emission_weight, escaped};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::math::V3;
+use crate::scene::aov::When;
 use glam::Vec3;
 
 /// For every path whose ray hit a surface from its front side:
@@ -86,13 +87,11 @@ pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, d
 }
 
 /// Record the AOVs of the hits at depth `depth` in the queue's AOV columns
-/// (nothing without them), as [`crate::integrator::aov`] defines them:
-/// at depth 0 the camera ray's hit distance, that along the camera's
-/// `forward` axis and the object hit; at the path's first
-/// non-specular vertex the material's albedo and the facing shading
-/// normal (the one *bounce* scatters with: interpolated vertex normals,
-/// turned towards the ray). Scalar, one path at a time, with the
-/// reference tracer's operations, so the values are its bits.
+/// (nothing without them), as [`crate::integrator::aov`] defines them
+/// ([`value`]): at depth 0 those of the camera ray's hit, at the path's
+/// first non-specular vertex those recorded there, for a camera looking
+/// along `forward`. Scalar, one path at a time, with the reference
+/// tracer's operations, so the values are its bits.
 pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, forward: Vec3) {
     let n = queue.len();
     let Some(aov) = queue.aov.as_mut() else {
@@ -103,23 +102,21 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, for
         if hit == NO_HIT {
             continue;
         }
-        if depth == 0 {
-            let d = Vec3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
-            aov.depth[i] = queue.t[i];
-            aov.zdepth[i] = zdepth(queue.t[i], d, forward);
-            aov.object[i] = tables.object_of(hit);
-        }
-        if !aov.surface || aov.pending[i] == 0 || tables.model_of(hit).is_delta() {
+        let first = aov.surface && aov.pending[i] != 0 && !tables.model_of(hit).is_delta();
+        if depth != 0 && !first {
             continue;
         }
-        aov.pending[i] = 0;
         let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
         let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
-        let s = tables.surface(hit as usize, (o, d), queue.t[i]);
-        let (albedo, ns) = (tables.albedo[s.material as usize], s.ns);
-        for (col, a) in aov.albedo.iter_mut().zip(albedo) {
-            col[i] = a;
+        let v = Vertex::new(tables, hit, (o, d), queue.t[i], forward);
+        for (a, col) in &mut aov.values {
+            let when = a.def().when;
+            if depth == 0 && when == When::CameraHit || first && when == When::FirstNonSpecular {
+                col[i] = value(*a, &v);
+            }
         }
-        (aov.normal[0][i], aov.normal[1][i], aov.normal[2][i]) = (ns.x, ns.y, ns.z);
+        if first {
+            aov.pending[i] = 0;
+        }
     }
 }
