@@ -18,7 +18,11 @@
 //!   `u16` or `u32`; sparse accessors; `POSITION` (finite), `NORMAL`,
 //!   `TEXCOORD_0`/`_1`, `TANGENT` (generated with MikkTSpace where a
 //!   normal texture needs them and the file has none), `COLOR_0`; float
-//!   and normalised integer components;
+//!   and normalised integer components, and `KHR_mesh_quantization`'s
+//!   integers that are not normalised (positions and texture coordinates);
+//! - `EXT_meshopt_compression`: every compressed buffer view is decoded
+//!   once, before any accessor is read ([`super::meshopt`]); fallback
+//!   buffers are not read;
 //! - metallic-roughness materials with their textures and
 //!   `KHR_texture_transform`, `KHR_materials_emissive_strength`,
 //!   `KHR_materials_ior`, `KHR_materials_specular`,
@@ -31,12 +35,13 @@
 //!   ([`LUMENS_PER_WATT`]) into W/sr and W/m²;
 //! - images in PNG or JPEG, in a buffer view, a data URI or a file beside
 //!   the asset;
-//! - `KHR_draco_mesh_compression` and `EXT_meshopt_compression` are
-//!   refused where required, with the command that decompresses the file;
+//! - `KHR_draco_mesh_compression` is refused where required, with the
+//!   command that decompresses the file;
 //!   any other required extension is refused by name, any other used one
 //!   ignored with a warning.
 
 use super::asset::{AlphaMode, Asset, AssetCamera, AssetError, AssetMesh, Instance, PbrMaterial};
+use super::meshopt::{self, Compressed};
 use super::punctual::{LUMENS_PER_WATT, LightShape, PunctualLight};
 use super::texture::{ColourSpace, Filter, Sampler, Texture, TextureRef, UvTransform, Wrap};
 use base64::Engine;
@@ -56,6 +61,8 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_transmission",
     "KHR_materials_volume",
     "KHR_lights_punctual",
+    "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
 ];
 
 /// The most elements an accessor without a buffer view (all zeros, then
@@ -117,7 +124,13 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
     // for that, not for what validation then misses (a Draco mesh's
     // accessors have no buffer views).
     check_required_extensions(&document, file)?;
-    let document = gltf::Document::from_json(document.into_json()).map_err(|e| invalid(&e))?;
+    // The gltf crate's validation refuses required extensions it does not
+    // know itself (KHR_mesh_quantization, EXT_meshopt_compression, which
+    // this module reads): those checked above are taken off its list.
+    let mut root = document.into_json();
+    root.extensions_required
+        .retain(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()));
+    let document = gltf::Document::from_json(root).map_err(|e| invalid(&e))?;
     let gltf = gltf::Gltf { document, blob };
     let mut r = Reader {
         file,
@@ -128,9 +141,12 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
         textures: HashMap::new(),
         files: Default::default(),
         decoded: Default::default(),
+        views: Vec::new(),
+        placeholders: Vec::new(),
     };
     r.warn_unread_extensions();
     r.buffers = r.load_buffers(gltf.blob.as_deref())?;
+    r.views = r.decode_compressed_views()?;
     r.read_materials()?;
     r.read_scene()?;
     r.asset.sources = r.files.into_inner();
@@ -143,7 +159,7 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
 fn check_required_extensions(doc: &gltf::Document, file: &str) -> Result<(), AssetError> {
     for ext in doc.extensions_required() {
         match ext {
-            "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+            "KHR_draco_mesh_compression" => {
                 return Err(AssetError::new(
                     file,
                     "extensionsRequired",
@@ -178,8 +194,15 @@ struct Reader<'a> {
     textures: HashMap<(usize, bool), u32>,
     /// The external files read (buffers, images).
     files: std::cell::RefCell<Vec<std::path::PathBuf>>,
-    /// The bytes of the accessors decoded so far.
+    /// The bytes of the accessors (and compressed views) decoded so far.
     decoded: std::cell::Cell<u64>,
+    /// Each buffer view's decoded bytes, where it is compressed
+    /// (`EXT_meshopt_compression`).
+    views: Vec<Option<Vec<u8>>>,
+    /// Whether each buffer is a placeholder (an `EXT_meshopt_compression`
+    /// fallback, or a buffer without data that only compressed views
+    /// use): not read, and empty in `buffers`.
+    placeholders: Vec<bool>,
 }
 
 impl Reader<'_> {
@@ -223,10 +246,29 @@ impl Reader<'_> {
             .map_err(|e| self.err(at, format!("cannot read {}: {e}", path.display())))
     }
 
-    fn load_buffers(&self, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, AssetError> {
+    /// Whether buffer `b` is a placeholder for compressed views: marked
+    /// as a fallback, or without a URI where the GLB binary chunk cannot
+    /// be its data (in a `.gltf`, or past buffer 0) in a file that uses
+    /// `EXT_meshopt_compression`.
+    fn is_placeholder(&self, b: &gltf::Buffer, blob: bool) -> bool {
+        let uses = self
+            .doc
+            .extensions_used()
+            .any(|e| e == "EXT_meshopt_compression");
+        let no_data = matches!(b.source(), gltf::buffer::Source::Bin) && (!blob || b.index() > 0);
+        uses && (b.extensions().is_some_and(meshopt::is_fallback) || no_data)
+    }
+
+    fn load_buffers(&mut self, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, AssetError> {
         let mut out = Vec::new();
         for b in self.doc.buffers() {
             let at = format!("buffers[{}]", b.index());
+            let placeholder = self.is_placeholder(&b, blob.is_some());
+            self.placeholders.push(placeholder);
+            if placeholder {
+                out.push(Vec::new());
+                continue;
+            }
             let data = match b.source() {
                 gltf::buffer::Source::Bin => blob
                     .ok_or_else(|| {
@@ -246,9 +288,128 @@ impl Reader<'_> {
         Ok(out)
     }
 
-    /// The bytes of buffer view `view`, checked against its buffer.
+    /// Every `EXT_meshopt_compression` buffer view decoded (`None` for
+    /// the others), once, before any accessor reads them.
+    fn decode_compressed_views(&self) -> Result<Vec<Option<Vec<u8>>>, AssetError> {
+        let mut out = Vec::new();
+        for view in self.doc.views() {
+            out.push(match view.extension_value("EXT_meshopt_compression") {
+                Some(value) => Some(self.decode_view(&view, value)?),
+                None => None,
+            });
+        }
+        Ok(out)
+    }
+
+    /// One compressed buffer view decoded: the extension's rules checked,
+    /// its source range checked against its buffer, and its decoded size
+    /// against the view's `byteLength` and the decoding budget, before
+    /// anything is allocated.
+    fn decode_view(
+        &self,
+        view: &gltf::buffer::View,
+        value: &serde_json::Value,
+    ) -> Result<Vec<u8>, AssetError> {
+        let at = format!(
+            "bufferViews[{}].extensions.EXT_meshopt_compression",
+            view.index()
+        );
+        let c = Compressed::parse(value).map_err(|e| self.err(&at, e))?;
+        c.check()
+            .map_err(|(field, m)| self.err(format!("{at}.{field}"), m))?;
+        let len = c
+            .decoded_len()
+            .filter(|&n| n == view.length())
+            .ok_or_else(|| {
+                self.err(
+                    format!("{at}.count"),
+                    format!(
+                        "{} elements of {} bytes do not make the buffer view's byteLength of {}",
+                        c.count,
+                        c.byte_stride,
+                        view.length()
+                    ),
+                )
+            })?;
+        if let Some(stride) = view.stride().filter(|&s| s != c.byte_stride) {
+            return Err(self.err(
+                format!("{at}.byteStride"),
+                format!(
+                    "{}, but the buffer view's byteStride is {stride}",
+                    c.byte_stride
+                ),
+            ));
+        }
+        let source = match self.buffers.get(c.buffer) {
+            Some(_) if self.placeholders[c.buffer] => Err(format!(
+                "{}: a fallback buffer without data cannot hold compressed bytes",
+                c.buffer
+            )),
+            Some(b) => Ok(b),
+            None => Err(format!("buffer {} of {}", c.buffer, self.buffers.len())),
+        }
+        .map_err(|m| self.err(format!("{at}.buffer"), m))?;
+        let end = c
+            .byte_offset
+            .checked_add(c.byte_length)
+            .filter(|&e| e <= source.len())
+            .ok_or_else(|| {
+                self.err(
+                    format!("{at}.byteLength"),
+                    format!(
+                        "bytes {} + {} lie outside buffer {} of {} bytes",
+                        c.byte_offset,
+                        c.byte_length,
+                        c.buffer,
+                        source.len()
+                    ),
+                )
+            })?;
+        self.charge(len as u64, &at)?;
+        c.decode(&source[c.byte_offset..end])
+            .map_err(|e| self.err(&at, e))
+    }
+
+    /// Adds `bytes` to the decoded bytes, refusing them past the budget
+    /// ([`DECODE_RATIO`] times the file's buffers' bytes, plus
+    /// [`DECODE_ALLOWANCE`]).
+    fn charge(&self, bytes: u64, at: &str) -> Result<(), AssetError> {
+        let buffer_bytes: u64 = self.buffers.iter().map(|b| b.len() as u64).sum();
+        let decoded = bytes.saturating_add(self.decoded.get());
+        let budget = buffer_bytes
+            .saturating_mul(DECODE_RATIO)
+            .saturating_add(DECODE_ALLOWANCE);
+        if decoded > budget {
+            return Err(self.err(
+                at,
+                format!(
+                    "{bytes} decoded bytes would bring the decoded data to {decoded} bytes, \
+                     more than {DECODE_RATIO} times the file's {buffer_bytes} bytes of buffers \
+                     (plus {DECODE_ALLOWANCE})"
+                ),
+            ));
+        }
+        self.decoded.set(decoded);
+        Ok(())
+    }
+
+    /// The bytes of buffer view `view`, checked against its buffer (or,
+    /// where it is compressed, decoded).
     fn view_bytes(&self, view: &gltf::buffer::View, at: &str) -> Result<&[u8], AssetError> {
-        let buffer = &self.buffers[view.buffer().index()];
+        if let Some(Some(bytes)) = self.views.get(view.index()) {
+            return Ok(bytes);
+        }
+        let b = view.buffer().index();
+        if self.placeholders[b] {
+            return Err(self.err(
+                format!("bufferViews[{}]", view.index()),
+                format!(
+                    "its buffer {b} is an EXT_meshopt_compression fallback without data, \
+                     and the view is not compressed (read for {at})"
+                ),
+            ));
+        }
+        let buffer = &self.buffers[b];
         let end = view
             .offset()
             .checked_add(view.length())
@@ -317,12 +478,15 @@ impl Reader<'_> {
     }
 
     /// An accessor's elements as `f32` components (`n` of them each;
-    /// normalised integers are mapped to `[0, 1]` or `[-1, 1]`).
+    /// normalised integers are mapped to `[0, 1]` or `[-1, 1]`; integers
+    /// that are not normalised, where `integers` allows them, are read as
+    /// their values).
     fn read_floats<const N: usize>(
         &self,
         acc: &gltf::Accessor,
         at: &str,
         allowed: &[Dimensions],
+        integers: bool,
     ) -> Result<Vec<[f32; N]>, AssetError> {
         let dims = acc.dimensions();
         if !allowed.contains(&dims) {
@@ -333,23 +497,38 @@ impl Reader<'_> {
         }
         let m = dims.multiplicity();
         let ty = acc.data_type();
-        if !acc.normalized() && ty != DataType::F32 && !matches!(dims, Dimensions::Scalar) {
-            // Non-normalised integers are allowed only for texture
-            // coordinates in KHR_mesh_quantization, which is not read.
+        let normalized = acc.normalized();
+        let quantized = integers
+            && matches!(
+                ty,
+                DataType::I8 | DataType::U8 | DataType::I16 | DataType::U16
+            );
+        if !normalized && ty != DataType::F32 && !matches!(dims, Dimensions::Scalar) && !quantized {
+            // Integers that are not normalised are allowed only for
+            // positions and texture coordinates, by KHR_mesh_quantization.
             return Err(self.err(
                 at,
-                format!("components of type {ty:?} that are not normalised"),
+                format!(
+                    "components of type {ty:?} that are not normalised (allowed for \
+                     POSITION and TEXCOORD_n where the file uses KHR_mesh_quantization)"
+                ),
             ));
         }
         let cs = ty.size();
         let decode = |b: &[u8]| -> f32 {
-            match ty {
-                DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-                DataType::U8 => b[0] as f32 / 255.0,
-                DataType::I8 => (b[0] as i8 as f32 / 127.0).max(-1.0),
-                DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65_535.0,
-                DataType::I16 => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32_767.0).max(-1.0),
-                DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            match (ty, normalized) {
+                (DataType::F32, _) => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                (DataType::U8, true) => b[0] as f32 / 255.0,
+                (DataType::I8, true) => (b[0] as i8 as f32 / 127.0).max(-1.0),
+                (DataType::U16, true) => u16::from_le_bytes([b[0], b[1]]) as f32 / 65_535.0,
+                (DataType::I16, true) => {
+                    (i16::from_le_bytes([b[0], b[1]]) as f32 / 32_767.0).max(-1.0)
+                }
+                (DataType::U8, false) => b[0] as f32,
+                (DataType::I8, false) => b[0] as i8 as f32,
+                (DataType::U16, false) => u16::from_le_bytes([b[0], b[1]]) as f32,
+                (DataType::I16, false) => i16::from_le_bytes([b[0], b[1]]) as f32,
+                (DataType::U32, _) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
             }
         };
         let one = |e: &[u8]| -> [f32; N] {
@@ -968,11 +1147,22 @@ impl Reader<'_> {
     ) -> Result<AssetMesh, AssetError> {
         let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
         let attr = |name: &str| format!("{at}.attributes.{name}");
+        // KHR_mesh_quantization: positions and texture coordinates may be
+        // integers that are not normalised.
+        let quantization = self
+            .doc
+            .extensions_used()
+            .any(|e| e == "KHR_mesh_quantization");
         let pos_acc = prim
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| self.err(&at, "a primitive without POSITION"))?;
         let positions: Vec<Vec3> = self
-            .read_floats::<3>(&pos_acc, &attr("POSITION"), &[Dimensions::Vec3])?
+            .read_floats::<3>(
+                &pos_acc,
+                &attr("POSITION"),
+                &[Dimensions::Vec3],
+                quantization,
+            )?
             .into_iter()
             .map(Vec3::from)
             .collect();
@@ -1002,7 +1192,7 @@ impl Reader<'_> {
             ..AssetMesh::default()
         };
         if let Some(a) = prim.get(&gltf::Semantic::Normals) {
-            let v = self.read_floats::<3>(&a, &attr("NORMAL"), &[Dimensions::Vec3])?;
+            let v = self.read_floats::<3>(&a, &attr("NORMAL"), &[Dimensions::Vec3], false)?;
             same_len(v.len(), "NORMAL")?;
             out.normals = v
                 .into_iter()
@@ -1011,7 +1201,8 @@ impl Reader<'_> {
         }
         for (set, name) in [(0u32, "TEXCOORD_0"), (1, "TEXCOORD_1")] {
             if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
-                let v = self.read_floats::<2>(&a, &attr(name), &[Dimensions::Vec2])?;
+                let v =
+                    self.read_floats::<2>(&a, &attr(name), &[Dimensions::Vec2], quantization)?;
                 same_len(v.len(), name)?;
                 let v = v
                     .into_iter()
@@ -1021,13 +1212,17 @@ impl Reader<'_> {
             }
         }
         if let Some(a) = prim.get(&gltf::Semantic::Tangents) {
-            let v = self.read_floats::<4>(&a, &attr("TANGENT"), &[Dimensions::Vec4])?;
+            let v = self.read_floats::<4>(&a, &attr("TANGENT"), &[Dimensions::Vec4], false)?;
             same_len(v.len(), "TANGENT")?;
             out.tangents = v;
         }
         if let Some(a) = prim.get(&gltf::Semantic::Colors(0)) {
-            let v =
-                self.read_floats::<4>(&a, &attr("COLOR_0"), &[Dimensions::Vec3, Dimensions::Vec4])?;
+            let v = self.read_floats::<4>(
+                &a,
+                &attr("COLOR_0"),
+                &[Dimensions::Vec3, Dimensions::Vec4],
+                false,
+            )?;
             same_len(v.len(), "COLOR_0")?;
             out.colours = v;
         }

@@ -16,6 +16,7 @@ pub mod light_check;
 pub mod material;
 pub mod mesh;
 pub mod mesh_source;
+pub mod meshopt;
 pub mod obj;
 pub mod options;
 pub mod ply;
