@@ -1964,3 +1964,152 @@ fn a_png_declaring_more_texels_than_its_bytes_hold_is_refused_before_decoding() 
         "{shown}"
     );
 }
+
+// --- Compressed glTF (EXT_meshopt_compression) ---
+
+/// How a compressed GLB is made hostile.
+#[derive(Clone, Debug)]
+enum MeshoptEdit {
+    /// Field `f` of compressed view `k`'s extension object set to `v`.
+    Field(usize, &'static str, serde_json::Value),
+    /// View `k` declares `count` elements, its `byteLength` agreeing (up
+    /// to terabytes: the decoding budget must refuse them).
+    Declare(usize, u64),
+    /// View `k`'s extension removed (its data on the fallback buffer).
+    Uncompress(usize),
+    Flip(usize, u8),
+    Truncate(usize),
+}
+
+fn meshopt_edit() -> impl Strategy<Value = MeshoptEdit> {
+    let fields = vec![
+        "buffer",
+        "byteOffset",
+        "byteLength",
+        "byteStride",
+        "count",
+        "mode",
+        "filter",
+    ];
+    let values = vec![
+        serde_json::json!(0),
+        serde_json::json!(1),
+        serde_json::json!(3),
+        serde_json::json!(4),
+        serde_json::json!(6),
+        serde_json::json!(8),
+        serde_json::json!(12),
+        serde_json::json!(256),
+        serde_json::json!(260),
+        serde_json::json!(1u64 << 31),
+        serde_json::json!(1u64 << 40),
+        serde_json::json!(u64::MAX),
+        serde_json::json!(-1),
+        serde_json::json!(1.5),
+        serde_json::json!(null),
+        serde_json::json!("ATTRIBUTES"),
+        serde_json::json!("TRIANGLES"),
+        serde_json::json!("INDICES"),
+        serde_json::json!("NONE"),
+        serde_json::json!("OCTAHEDRAL"),
+        serde_json::json!("QUATERNION"),
+        serde_json::json!("EXPONENTIAL"),
+        serde_json::json!("ZSTD"),
+    ];
+    prop_oneof![
+        4 => (any::<usize>(), select(fields), select(values))
+            .prop_map(|(k, f, v)| MeshoptEdit::Field(k, f, v)),
+        2 => (any::<usize>(), select(vec![0u64, 1, 3, 1 << 16, 1 << 20, 1 << 24, 1 << 30, 1 << 40]))
+            .prop_map(|(k, n)| MeshoptEdit::Declare(k, n)),
+        1 => any::<usize>().prop_map(MeshoptEdit::Uncompress),
+        3 => (any::<usize>(), 0u8..8).prop_map(|(a, b)| MeshoptEdit::Flip(a, b)),
+        1 => any::<usize>().prop_map(MeshoptEdit::Truncate),
+    ]
+}
+
+/// `edits` applied to the shipped gltfpack output of the textured GLB
+/// (`tests/data/meshopt/textured-meshopt.glb`): the file's bytes.
+fn hostile_meshopt_glb(edits: &[MeshoptEdit]) -> Vec<u8> {
+    let b = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/meshopt/textured-meshopt.glb"),
+    )
+    .unwrap();
+    let len = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = len(12);
+    let mut json: serde_json::Value = serde_json::from_slice(&b[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let mut bin = b[bin_at + 8..bin_at + 8 + len(bin_at)].to_vec();
+    let compressed: Vec<usize> = (json["bufferViews"].as_array().unwrap().iter())
+        .enumerate()
+        .filter(|(_, v)| v.get("extensions").is_some())
+        .map(|(k, _)| k)
+        .collect();
+    let mut truncate = None;
+    for e in edits {
+        match e {
+            MeshoptEdit::Field(k, f, v) => {
+                let k = compressed[k % compressed.len()];
+                json["bufferViews"][k]["extensions"]["EXT_meshopt_compression"][*f] = v.clone();
+            }
+            MeshoptEdit::Declare(k, n) => {
+                let k = compressed[k % compressed.len()];
+                let ext = &mut json["bufferViews"][k]["extensions"]["EXT_meshopt_compression"];
+                ext["count"] = (*n).into();
+                let stride = ext["byteStride"].as_u64().unwrap_or(4);
+                json["bufferViews"][k]["byteLength"] = n.saturating_mul(stride).into();
+            }
+            MeshoptEdit::Uncompress(k) => {
+                let k = compressed[k % compressed.len()];
+                if let Some(v) = json["bufferViews"][k].as_object_mut() {
+                    v.remove("extensions");
+                }
+            }
+            MeshoptEdit::Flip(a, bit) => {
+                let n = bin.len();
+                bin[a % n] ^= 1 << bit;
+            }
+            MeshoptEdit::Truncate(a) => truncate = Some(a % bin.len()),
+        }
+    }
+    if let Some(t) = truncate {
+        bin.truncate(t);
+    }
+    let mut j = serde_json::to_vec(&json).unwrap();
+    j.resize(j.len().next_multiple_of(4), b' ');
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + j.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// A meshopt-compressed GLB (gltfpack's, with quantized attributes)
+    /// with its extension objects mutated — modes, filters, strides and
+    /// counts the specification forbids, source ranges outside their
+    /// buffer, counts up to terabytes with the view's byteLength
+    /// agreeing, views on the fallback buffer left uncompressed — and its
+    /// compressed bytes flipped or cut short: each loads and renders, or
+    /// is refused naming the file; no panic, no allocation beyond the
+    /// decoding budget (64 MiB plus 64 times the file's buffers).
+    #[test]
+    fn hostile_meshopt_gltf(edits in proptest::collection::vec(meshopt_edit(), 1..4)) {
+        let dir = TempDir::new("fuzz-meshopt");
+        let bytes = hostile_meshopt_glb(&edits);
+        let path = dir.join("m.glb");
+        std::fs::write(&path, &bytes).unwrap();
+        let budget = wavetrace::scene::gltf::DECODE_ALLOWANCE as usize
+            + wavetrace::scene::gltf::DECODE_RATIO as usize * bytes.len();
+        load_asset_case(&path, budget, &edits)?;
+    }
+}

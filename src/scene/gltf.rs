@@ -165,9 +165,10 @@ fn check_required_extensions(doc: &gltf::Document, file: &str) -> Result<(), Ass
                     "extensionsRequired",
                     format!(
                         "the meshes are compressed with {ext}, which wavetrace does not \
-                         decode; decompress the file first, e.g. with \
-                         `npx @gltf-transform/cli copy in.glb out.glb` \
-                         (or `gltfpack -i in.glb -o out.glb -noq`)"
+                         decode (no maintained Rust decoder); decompress the file first: \
+                         `npx @gltf-transform/cli copy in.glb out.glb` (or recompress it \
+                         with `npx @gltf-transform/cli meshopt in.glb out.glb`: \
+                         EXT_meshopt_compression is read)"
                     ),
                 ));
             }
@@ -198,7 +199,7 @@ struct Reader<'a> {
     decoded: std::cell::Cell<u64>,
     /// Each buffer view's decoded bytes, where it is compressed
     /// (`EXT_meshopt_compression`).
-    views: Vec<Option<Vec<u8>>>,
+    views: Vec<Option<meshopt::Decoded>>,
     /// Whether each buffer is a placeholder (an `EXT_meshopt_compression`
     /// fallback, or a buffer without data that only compressed views
     /// use): not read, and empty in `buffers`.
@@ -290,7 +291,7 @@ impl Reader<'_> {
 
     /// Every `EXT_meshopt_compression` buffer view decoded (`None` for
     /// the others), once, before any accessor reads them.
-    fn decode_compressed_views(&self) -> Result<Vec<Option<Vec<u8>>>, AssetError> {
+    fn decode_compressed_views(&self) -> Result<Vec<Option<meshopt::Decoded>>, AssetError> {
         let mut out = Vec::new();
         for view in self.doc.views() {
             out.push(match view.extension_value("EXT_meshopt_compression") {
@@ -309,7 +310,7 @@ impl Reader<'_> {
         &self,
         view: &gltf::buffer::View,
         value: &serde_json::Value,
-    ) -> Result<Vec<u8>, AssetError> {
+    ) -> Result<meshopt::Decoded, AssetError> {
         let at = format!(
             "bufferViews[{}].extensions.EXT_meshopt_compression",
             view.index()
@@ -396,8 +397,8 @@ impl Reader<'_> {
     /// The bytes of buffer view `view`, checked against its buffer (or,
     /// where it is compressed, decoded).
     fn view_bytes(&self, view: &gltf::buffer::View, at: &str) -> Result<&[u8], AssetError> {
-        if let Some(Some(bytes)) = self.views.get(view.index()) {
-            return Ok(bytes);
+        if let Some(Some(decoded)) = self.views.get(view.index()) {
+            return Ok(decoded.bytes());
         }
         let b = view.buffer().index();
         if self.placeholders[b] {
@@ -1140,56 +1141,31 @@ impl Reader<'_> {
         Ok(())
     }
 
-    fn read_primitive(
-        &mut self,
-        mesh: &gltf::Mesh,
-        prim: &gltf::Primitive,
-    ) -> Result<AssetMesh, AssetError> {
-        let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
-        let attr = |name: &str| format!("{at}.attributes.{name}");
-        // KHR_mesh_quantization: positions and texture coordinates may be
-        // integers that are not normalised.
-        let quantization = self
-            .doc
+    /// Whether the file uses `KHR_mesh_quantization`: positions and
+    /// texture coordinates may be integers that are not normalised.
+    fn quantization(&self) -> bool {
+        self.doc
             .extensions_used()
-            .any(|e| e == "KHR_mesh_quantization");
-        let pos_acc = prim
-            .get(&gltf::Semantic::Positions)
-            .ok_or_else(|| self.err(&at, "a primitive without POSITION"))?;
-        let positions: Vec<Vec3> = self
-            .read_floats::<3>(
-                &pos_acc,
-                &attr("POSITION"),
-                &[Dimensions::Vec3],
-                quantization,
-            )?
-            .into_iter()
-            .map(Vec3::from)
-            .collect();
-        if let Some(k) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(self.err(
-                attr("POSITION"),
-                format!("position {k} is not finite: {}", positions[k]),
-            ));
-        }
-        let n = positions.len();
+            .any(|e| e == "KHR_mesh_quantization")
+    }
+
+    /// A primitive's attributes other than `POSITION` (at `at`) into
+    /// `out`, each as long as its positions.
+    fn read_attributes(
+        &self,
+        prim: &gltf::Primitive,
+        at: &str,
+        out: &mut AssetMesh,
+    ) -> Result<(), AssetError> {
+        let attr = |name: &str| format!("{at}.attributes.{name}");
+        let quantization = self.quantization();
+        let n = out.positions.len();
         let same_len = |len: usize, name: &str| -> Result<(), AssetError> {
             if len == n {
                 Ok(())
             } else {
                 Err(self.err(attr(name), format!("{len} values for {n} positions")))
             }
-        };
-        let mut out = AssetMesh {
-            name: format!(
-                "{} mesh {} primitive {}",
-                self.file,
-                mesh.index(),
-                prim.index()
-            ),
-            positions,
-            material: prim.material().index().map(|i| i as u32),
-            ..AssetMesh::default()
         };
         if let Some(a) = prim.get(&gltf::Semantic::Normals) {
             let v = self.read_floats::<3>(&a, &attr("NORMAL"), &[Dimensions::Vec3], false)?;
@@ -1226,6 +1202,48 @@ impl Reader<'_> {
             same_len(v.len(), "COLOR_0")?;
             out.colours = v;
         }
+        Ok(())
+    }
+
+    fn read_primitive(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+    ) -> Result<AssetMesh, AssetError> {
+        let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+        let attr = |name: &str| format!("{at}.attributes.{name}");
+        let pos_acc = prim
+            .get(&gltf::Semantic::Positions)
+            .ok_or_else(|| self.err(&at, "a primitive without POSITION"))?;
+        let positions: Vec<Vec3> = self
+            .read_floats::<3>(
+                &pos_acc,
+                &attr("POSITION"),
+                &[Dimensions::Vec3],
+                self.quantization(),
+            )?
+            .into_iter()
+            .map(Vec3::from)
+            .collect();
+        if let Some(k) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(self.err(
+                attr("POSITION"),
+                format!("position {k} is not finite: {}", positions[k]),
+            ));
+        }
+        let n = positions.len();
+        let mut out = AssetMesh {
+            name: format!(
+                "{} mesh {} primitive {}",
+                self.file,
+                mesh.index(),
+                prim.index()
+            ),
+            positions,
+            material: prim.material().index().map(|i| i as u32),
+            ..AssetMesh::default()
+        };
+        self.read_attributes(prim, &at, &mut out)?;
         let indices = match prim.indices() {
             Some(a) => {
                 let v = self.read_indices(&a, &format!("{at}.indices"))?;

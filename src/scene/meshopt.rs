@@ -88,7 +88,7 @@ impl Compressed {
         let s = self.byte_stride;
         match self.mode {
             Mode::Attributes => {
-                if s == 0 || s % 4 != 0 || s > 256 {
+                if s == 0 || !s.is_multiple_of(4) || s > 256 {
                     return Err((
                         "byteStride",
                         format!("{s}: ATTRIBUTES needs a multiple of 4 up to 256"),
@@ -108,7 +108,7 @@ impl Compressed {
                         ),
                     ));
                 }
-                if self.mode == Mode::Triangles && self.count % 3 != 0 {
+                if self.mode == Mode::Triangles && !self.count.is_multiple_of(3) {
                     return Err((
                         "count",
                         format!("{}: TRIANGLES needs a multiple of 3", self.count),
@@ -132,53 +132,43 @@ impl Compressed {
 
     /// Decodes `source` (the compressed bytes) into the view's
     /// `count × byteStride` bytes, the filter applied. [`Compressed::check`]
-    /// must have passed; the caller has bounded the decoded size.
-    pub fn decode(&self, source: &[u8]) -> Result<Vec<u8>, String> {
-        let garbage = |e: meshopt::Error| {
-            format!("the compressed bytes do not decode as {:?}: {e}", self.mode)
-        };
+    /// must have passed; the caller has bounded the decoded size. The
+    /// bytes are decoded in place into one allocation (of words, so that
+    /// the filters' views of them as `i8`, `i16` or `u32` are aligned).
+    pub fn decode(&self, source: &[u8]) -> Result<Decoded, String> {
         let len = self.decoded_len().ok_or("the decoded size overflows")?;
+        let mut words = vec![0u32; len.div_ceil(4)];
         if self.count == 0 {
-            return Ok(Vec::new());
+            return Ok(Decoded { words, len });
         }
-        let s = self.byte_stride;
-        match (self.mode, s) {
-            (Mode::Triangles, 2) => meshopt::decode_index_buffer::<u16>(source, self.count)
-                .map(|v| bytemuck::cast_slice(&v).to_vec())
-                .map_err(garbage),
-            (Mode::Triangles, _) => meshopt::decode_index_buffer::<u32>(source, self.count)
-                .map(|v| bytemuck::cast_slice(&v).to_vec())
-                .map_err(garbage),
-            (Mode::Indices, 2) => meshopt::decode_index_sequence::<u16>(source, self.count)
-                .map(|v| bytemuck::cast_slice(&v).to_vec())
-                .map_err(garbage),
-            (Mode::Indices, _) => meshopt::decode_index_sequence::<u32>(source, self.count)
-                .map(|v| bytemuck::cast_slice(&v).to_vec())
-                .map_err(garbage),
-            (Mode::Attributes, _) => {
-                // Words, so that the filters' views of the bytes (as i8,
-                // i16 or u32) are aligned.
-                let mut words = vec![0u32; len / 4];
-                // SAFETY: `words` holds `count × byteStride` bytes, the
-                // decoder's output; `check` made the stride a multiple of 4
-                // in 4..=256, as it requires; it reads at most
-                // `source.len()` bytes of `source`.
-                let rc = unsafe {
-                    meshopt::ffi::meshopt_decodeVertexBuffer(
-                        words.as_mut_ptr().cast(),
-                        self.count,
-                        s,
-                        source.as_ptr(),
-                        source.len(),
-                    )
-                };
-                if rc != 0 {
-                    return Err(garbage(meshopt::Error::Native(rc)));
-                }
-                self.unfilter(&mut words);
-                Ok(bytemuck::cast_slice(&words).to_vec())
-            }
+        let decoder = match self.mode {
+            Mode::Attributes => meshopt::ffi::meshopt_decodeVertexBuffer,
+            Mode::Triangles => meshopt::ffi::meshopt_decodeIndexBuffer,
+            Mode::Indices => meshopt::ffi::meshopt_decodeIndexSequence,
+        };
+        // SAFETY: `words` holds at least `count × byteStride` bytes, what
+        // the decoder writes; `check` made the decoder's preconditions
+        // hold (a stride that is a multiple of 4 in 4..=256 for
+        // attributes; 2 or 4 for indices, and a count that is a multiple
+        // of 3 for triangles); it reads at most `source.len()` bytes of
+        // `source`, and is written to be safe on any bytes there.
+        let rc = unsafe {
+            decoder(
+                words.as_mut_ptr().cast(),
+                self.count,
+                self.byte_stride,
+                source.as_ptr(),
+                source.len(),
+            )
+        };
+        if rc != 0 {
+            return Err(format!(
+                "the compressed bytes do not decode as {:?} (meshoptimizer's error {rc})",
+                self.mode
+            ));
         }
+        self.unfilter(&mut words);
+        Ok(Decoded { words, len })
     }
 
     /// The filter undone in place on decoded attributes.
@@ -200,6 +190,20 @@ impl Compressed {
                 meshopt::decode_filter_exp::<1>(bytemuck::cast_slice_mut(words));
             }
         }
+    }
+}
+
+/// A buffer view's decoded bytes.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    words: Vec<u32>,
+    len: usize,
+}
+
+impl Decoded {
+    /// The bytes (in the words' little-endian order, as glTF's buffers).
+    pub fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.words)[..self.len]
     }
 }
 
