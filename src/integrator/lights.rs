@@ -30,12 +30,14 @@
 //! one sample exactly as before.
 
 use super::environment::EnvLight;
+use super::light_tree::{LightBounds, LightTree, TREE_MIN_EMITTERS};
 use super::punctual::Punctual;
 use crate::accel::shape::{AreaShape, Family, Kinds, Make, Shape, Shapes, Visit};
 use crate::accel::triangle::TriangleEdges;
 pub use crate::accel::triangle::square_to_triangle;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
+use glam::Vec3;
 use wide::f32x8;
 
 /// The scene's emitters, with what sampling them needs.
@@ -71,6 +73,14 @@ pub struct Lights {
     punctual: Vec<Punctual>,
     /// Whether some of them are suns that rays leaving the scene see.
     suns: bool,
+    /// Where the scene has more than [`TREE_MIN_EMITTERS`] emitters: the
+    /// tree that picks one of them by its importance at the shading point
+    /// (then `cdf` has one entry for all the emitters, the tree's).
+    tree: Option<LightTree>,
+    /// With a tree: the probability that it is picked (the emitters'
+    /// share of the power), and each emitter's area.
+    tree_probability: f32,
+    areas: Vec<f32>,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`) of any kind (a
@@ -198,6 +208,30 @@ impl Emitter {
         prim: NO_PRIM_BITS,
         kind: 0.0,
     };
+}
+
+impl Emitter {
+    /// Its bounds for the light tree, with power `power`: its box (a
+    /// sphere's: its centre ± its radius) and normal (a sphere: normals
+    /// every way).
+    fn bounds(&self, power: f64) -> LightBounds {
+        let (v0, e1, e2) = (
+            Vec3::from(self.v0),
+            Vec3::from(self.e1),
+            Vec3::from(self.e2),
+        );
+        if self.radius > 0.0 {
+            let r = Vec3::splat(self.radius);
+            return LightBounds::emitter(v0 - r, v0 + r, power as f32, Vec3::Z, false);
+        }
+        let mut corners = vec![v0, v0 + e1, v0 + e2];
+        if self.parallelogram > 0.0 {
+            corners.push(v0 + e1 + e2);
+        }
+        let lo = corners.iter().fold(Vec3::INFINITY, |a, &c| a.min(c));
+        let hi = corners.iter().fold(Vec3::NEG_INFINITY, |a, &c| a.max(c));
+        LightBounds::emitter(lo, hi, power as f32, self.normal.into(), true)
+    }
 }
 
 impl<R: Real> Emitter<R> {
@@ -541,15 +575,28 @@ impl Lights {
             }
             lights.environment = Some(env);
         }
+        let by_tree = (scene.options.light_tree).unwrap_or(shapes.len() > TREE_MIN_EMITTERS)
+            && !shapes.is_empty();
         let mut sum = 0.0;
         for (k, (prims, power, area)) in shapes.iter().enumerate() {
             sum += power;
-            lights.cdf.push((sum / total) as f32);
+            if !by_tree {
+                lights.cdf.push((sum / total) as f32);
+            }
             lights.emitters[k].pdf_area = ((power / total) / area) as f32;
             lights.emitters[k].probability = (power / total) as f32;
             for prim in prims.iter().flatten() {
                 lights.emitter_of[*prim as usize] = k as u32;
             }
+        }
+        if by_tree {
+            lights.tree_probability = (sum / total) as f32;
+            lights.cdf.push(lights.tree_probability);
+            lights.areas = shapes.iter().map(|s| s.2 as f32).collect();
+            let bounds: Vec<LightBounds> = (lights.emitters.iter().zip(&shapes))
+                .map(|(e, s)| e.bounds(s.1))
+                .collect();
+            lights.tree = Some(LightTree::new(&bounds));
         }
         for p in &mut lights.punctual {
             sum += p.power;
@@ -599,7 +646,7 @@ impl Lights {
     /// direction becomes a point [`Lights::far`] away facing back (its
     /// density is by solid angle).
     fn sample_with_extras(&self, o: V3<f32>, u: [f32; 2]) -> LightPoint<f32> {
-        let n = self.emitters.len();
+        let n = self.cdf_emitters();
         let k = self
             .cdf
             .partition_point(|&c| c <= u[0])
@@ -607,7 +654,10 @@ impl Lights {
         let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
         let u0 = ((u[0] - lo) / (self.cdf[k] - lo)).clamp(0.0, ONE_MINUS_EPSILON);
         if k < n {
-            return self.point_on(&self.emitters[k], o, [u0, u[1]]);
+            return match &self.tree {
+                Some(tree) => self.sample_tree(tree, o, [u0, u[1]]),
+                None => self.point_on(&self.emitters[k], o, [u0, u[1]]),
+            };
         }
         if let Some(p) = self.punctual.get(k - n) {
             let s = p.sample(o, [u0, u[1]], self.far);
@@ -649,7 +699,10 @@ impl Lights {
     #[inline(always)]
     pub fn sample_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
         if !self.has_extras() {
-            let (emitters, u0) = self.pick_8(u[0], lanes);
+            let (emitters, u0) = match &self.tree {
+                None => self.pick_8(u[0], lanes),
+                Some(tree) => self.pick_by_tree_8(tree, o, u[0], lanes),
+            };
             return self.point_on(&emitters, o, [u0, u[1]]);
         }
         let none = LightPoint::on_by_area(&Emitter::NONE, [0.0, 0.0]);
@@ -701,7 +754,84 @@ impl Lights {
     /// NaN: [`pick`](Self::pick) must never see a sum past the emitters.)
     #[inline]
     fn has_extras(&self) -> bool {
-        self.cdf.len() > self.emitters.len()
+        self.cdf.len() > self.cdf_emitters()
+    }
+
+    /// How many entries of the running sums are the emitters': one (the
+    /// tree's) where they are picked by a tree, else one each.
+    #[inline]
+    fn cdf_emitters(&self) -> usize {
+        match self.tree {
+            Some(_) => 1,
+            None => self.emitters.len(),
+        }
+    }
+
+    /// The light tree, where the scene has one (more than
+    /// [`TREE_MIN_EMITTERS`] emitters).
+    pub fn tree(&self) -> Option<&LightTree> {
+        self.tree.as_ref()
+    }
+
+    /// A point on the emitter the tree picks for the shading point `o`
+    /// with `u[0]` ([`LightTree::sample`], which stretches `u[0]` back over
+    /// `[0, 1)`), by [`point_on`](Self::point_on) with the emitter's
+    /// probability there; a point that carries no light where no emitter
+    /// faces `o`.
+    #[inline]
+    fn sample_tree(&self, tree: &LightTree, o: V3<f32>, u: [f32; 2]) -> LightPoint<f32> {
+        match tree.sample(Vec3::from(o), u[0]) {
+            Some((k, pmf, u0)) => {
+                let e = self.picked_with(k as usize, self.tree_probability * pmf);
+                self.point_on(&e, o, [u0, u[1]])
+            }
+            None => LightPoint::on_by_area(&Emitter::NONE, u),
+        }
+    }
+
+    /// [`sample_tree`](Self::sample_tree)'s picks for the first `lanes`
+    /// of eight shading points `o` and numbers `u0`, lane by lane: the
+    /// emitters (with their probabilities there; [`Emitter::NONE`] where
+    /// none faces the point, and past `lanes`) and the stretched numbers.
+    #[inline(always)]
+    fn pick_by_tree_8(
+        &self,
+        tree: &LightTree,
+        o: V3<f32x8>,
+        u0: f32x8,
+        lanes: usize,
+    ) -> (Emitter<f32x8>, f32x8) {
+        let (ox, oy, oz) = (o.x.to_array(), o.y.to_array(), o.z.to_array());
+        let mut u = u0.to_array();
+        let mut picked = [Emitter::NONE; 8];
+        for l in 0..lanes {
+            if let Some((k, pmf, u_l)) = tree.sample(Vec3::new(ox[l], oy[l], oz[l]), u[l]) {
+                picked[l] = self.picked_with(k as usize, self.tree_probability * pmf);
+                u[l] = u_l;
+            }
+        }
+        (Emitter::lanes(picked.each_ref()), f32x8::from(u))
+    }
+
+    /// Emitter `k` picked with probability `probability` (a tree's pick,
+    /// which depends on the shading point): its densities scaled to it.
+    #[inline]
+    fn picked_with(&self, k: usize, probability: f32) -> Emitter {
+        Emitter {
+            probability,
+            pdf_area: probability / self.areas[k],
+            ..self.emitters[k]
+        }
+    }
+
+    /// The probability that [`Lights::sample`] for the shading point `o`
+    /// picks emitter `k` (by the tree where there is one, else by power).
+    #[inline]
+    pub fn emitter_probability(&self, k: usize, o: V3<f32>) -> f32 {
+        match &self.tree {
+            Some(tree) => self.tree_probability * tree.pmf(Vec3::from(o), k as u32),
+            None => self.emitters[k].probability,
+        }
     }
 
     /// Whether rays that leave the scene can see something: an
@@ -728,6 +858,15 @@ impl Lights {
     /// Number of emitters (not counting an environment).
     pub fn len(&self) -> usize {
         self.triangle.len()
+    }
+
+    /// The emitter (its index, `0..len()`) that primitive `prim` belongs
+    /// to, if it emits.
+    pub fn emitter_of(&self, prim: u32) -> Option<usize> {
+        match self.emitter_of.get(prim as usize) {
+            Some(&NOT_EMITTER) | None => None,
+            Some(&k) => Some(k as usize),
+        }
     }
 
     /// The emitter that `u0` in `[0, 1)` chooses, by power, and `u0`
@@ -758,7 +897,7 @@ impl Lights {
         if self.is_empty() {
             return None;
         }
-        if self.has_extras() {
+        if self.has_extras() || self.tree.is_some() {
             return Some(self.sample_with_extras(o, u));
         }
         let (emitter, u0) = self.pick(u[0]);
@@ -819,9 +958,15 @@ impl Lights {
     /// density the light sample computes, by solid angle or by area.
     #[inline]
     pub fn pdf_solid_angle(&self, triangle: u32, o: V3<f32>, t: f32, cos_light: f32) -> f32 {
-        let e = match self.emitter_of[triangle as usize] {
-            NOT_EMITTER => return 0.0,
-            k => &self.emitters[k as usize],
+        let picked;
+        let e = match (self.emitter_of[triangle as usize], &self.tree) {
+            (NOT_EMITTER, _) => return 0.0,
+            (k, None) => &self.emitters[k as usize],
+            (k, Some(_)) => {
+                let k = k as usize;
+                picked = self.picked_with(k, self.emitter_probability(k, o));
+                &picked
+            }
         };
         let by_area = e.pdf_area * (t * t) / cos_light;
         if e.rectangle == 0.0 {

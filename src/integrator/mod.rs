@@ -21,6 +21,7 @@
 pub mod aov;
 pub mod bsdf;
 pub mod environment;
+pub mod light_tree;
 pub mod lights;
 pub mod nee;
 pub mod offset;

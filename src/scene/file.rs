@@ -179,6 +179,7 @@ struct IntegratorFile {
     sampler: Option<Spanned<String>>,
     rr_depth: Option<Spanned<u32>>,
     aov: Option<Spanned<Vec<String>>>,
+    light_tree: Option<bool>,
 }
 
 impl Default for IntegratorFile {
@@ -189,6 +190,7 @@ impl Default for IntegratorFile {
             sampler: None,
             rr_depth: None,
             aov: None,
+            light_tree: None,
         }
     }
 }
@@ -993,6 +995,7 @@ fn integrator(t: &Toml, raw: &IntegratorFile) -> Result<(u32, RenderOptions), Sc
         sampler: sampler.and_then(|n| SamplerKind::from_name(&n)),
         rr_depth: raw.rr_depth.as_ref().map(|d| *d.get_ref()),
         aov,
+        light_tree: raw.light_tree,
     };
     Ok((max_depth, options))
 }

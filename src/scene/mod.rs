@@ -624,6 +624,15 @@ impl Scene {
         for l in &self.lights {
             l.hash_into(&mut h);
         }
+        // (Scenes that leave the light tree to the counted rule hash as
+        // before it existed.)
+        if let Some(tree) = self.options.light_tree {
+            h.update(if tree {
+                b"light tree on"
+            } else {
+                b"light tree of"
+            });
+        }
         h.digest128()
     }
 }

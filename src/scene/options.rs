@@ -90,4 +90,8 @@ pub struct RenderOptions {
     pub rr_depth: Option<u32>,
     /// The auxiliary outputs to accumulate beside the radiance.
     pub aov: Option<AovSet>,
+    /// Whether `nee` picks emitters by a light tree (`true`) or by power
+    /// alone (`false`); `None`: by the counted rule (a tree where the scene
+    /// has more than 16 emitters, docs/lights.md).
+    pub light_tree: Option<bool>,
 }
