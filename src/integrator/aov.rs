@@ -30,7 +30,7 @@
 //!   are followed, in the direction the path itself sampled there, as OIDN
 //!   expects), the material's reflectance times its base colour texture
 //!   and vertex colours there, clamped to [0, 1]
-//!   ([`Tables::albedo_at`]; [`albedo`] where nothing is textured).
+//!   ([`Tables::albedo_at`]).
 //!   Lights count as surfaces (their reflectance). A path with no
 //!   non-specular vertex — it escapes first, or reaches the maximum depth
 //!   (or is ended by Russian roulette) while every vertex so far was
@@ -79,7 +79,7 @@ use super::tables::Tables;
 pub use crate::film::AovSample;
 use crate::math::V3;
 use crate::scene::aov::When;
-use crate::scene::{Aov, AovSet, Material};
+use crate::scene::{Aov, AovSet};
 use glam::Vec3;
 use std::cell::OnceCell;
 
@@ -165,11 +165,4 @@ pub fn record(aovs: AovSet, when: When, v: &Vertex, sample: &mut AovSample) {
 #[inline]
 pub fn zdepth(t: f32, d: Vec3, forward: Vec3) -> f32 {
     t * d.dot(forward)
-}
-
-/// The albedo AOV of a non-specular `material`: its reflectance, clamped
-/// to [0, 1] (what OIDN expects of an albedo buffer).
-#[inline]
-pub fn albedo(material: &Material) -> Vec3 {
-    material.reflectance.clamp(Vec3::ZERO, Vec3::ONE)
 }

@@ -63,7 +63,7 @@ pub struct Tables {
     /// Each material's colour as [`Surface::tint`] takes it, per RGB
     /// channel (columns indexed by material).
     pub tint: [Vec<f32>; 3],
-    /// Each material's albedo AOV ([`crate::integrator::aov::albedo`]),
+    /// Each material's albedo AOV (its reflectance clamped to [0, 1]),
     /// RGB, indexed by material.
     pub albedo: Vec<[f32; 3]>,
     /// Each material's GGX roughness (metal).
@@ -163,7 +163,11 @@ impl Tables {
             material_of: materials,
             tint: [0, 1, 2].map(|c| surfaces.iter().map(|s| tint(s)[c]).collect()),
             albedo: (scene.materials.iter())
-                .map(|m| crate::integrator::aov::albedo(m).to_array())
+                .map(|m| {
+                    m.reflectance
+                        .clamp(glam::Vec3::ZERO, glam::Vec3::ONE)
+                        .to_array()
+                })
                 .collect(),
             alpha: surfaces.iter().map(|s| s.alpha).collect(),
             ior: surfaces.iter().map(|s| s.ior).collect(),
@@ -691,7 +695,7 @@ impl Tables {
         colour
     }
 
-    /// The albedo AOV at `hit` ([`crate::integrator::aov`]): its
+    /// The albedo AOV at `hit`: its
     /// material's reflectance times the base colour texture and vertex
     /// colours there, clamped to [0, 1] (the material's
     /// [`albedo`](Self::albedo) where nothing is looked up per hit).
