@@ -165,7 +165,7 @@ fn check_required_extensions(doc: &gltf::Document, file: &str) -> Result<(), Ass
                     "extensionsRequired",
                     format!(
                         "the meshes are compressed with {ext}, which wavetrace does not \
-                         decode (no maintained Rust decoder); decompress the file first: \
+                         decode yet; decompress the file first: \
                          `npx @gltf-transform/cli copy in.glb out.glb` (or recompress it \
                          with `npx @gltf-transform/cli meshopt in.glb out.glb`: \
                          EXT_meshopt_compression is read)"
