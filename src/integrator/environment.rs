@@ -199,7 +199,21 @@ impl EnvLight {
     /// image looked up bilinearly at [`uv`](Self::uv)`(d)`.
     #[inline]
     pub fn radiance(&self, d: V3<f32>) -> V3<f32> {
-        let [u, v] = self.uv(d);
+        self.radiance_at(self.uv(d))
+    }
+
+    /// The radiance and the density of [`sample`](Self::sample) in the
+    /// world direction `d` (unit): [`radiance`](Self::radiance) and
+    /// [`pdf`](Self::pdf), with the direction's `(u, v)` computed once.
+    #[inline]
+    pub fn radiance_and_pdf(&self, d: V3<f32>) -> (V3<f32>, f32) {
+        let uv = self.uv(d);
+        (self.radiance_at(uv), self.pdf_at(uv, d))
+    }
+
+    /// The image looked up bilinearly at `(u, v)`.
+    #[inline]
+    fn radiance_at(&self, [u, v]: [f32; 2]) -> V3<f32> {
         let x = u * self.width as f32 - 0.5;
         let y = v * self.height as f32 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
@@ -226,7 +240,15 @@ impl EnvLight {
         if self.is_black() {
             return 0.0;
         }
-        let [u, v] = self.uv(d);
+        self.pdf_at(self.uv(d), d)
+    }
+
+    /// [`pdf`](Self::pdf) of the direction `d` whose `(u, v)` is given.
+    #[inline]
+    fn pdf_at(&self, [u, v]: [f32; 2], d: V3<f32>) -> f32 {
+        if self.is_black() {
+            return 0.0;
+        }
         let sin = (1.0 - d.y * d.y).max(0.0).sqrt();
         if sin <= 0.0 {
             return 0.0;

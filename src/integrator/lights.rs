@@ -640,6 +640,20 @@ impl Lights {
         }
     }
 
+    /// The environment's radiance from the direction `d` and the density
+    /// [`environment_pdf`](Self::environment_pdf) of `d`, with `d`'s
+    /// `(u, v)` computed once (`None` without an environment).
+    #[inline]
+    pub fn environment_radiance_and_pdf(&self, d: V3<f32>) -> Option<(V3<f32>, f32)> {
+        let env = self.environment.as_ref()?;
+        Some(if self.environment_probability > 0.0 {
+            let (l, pdf) = env.radiance_and_pdf(d);
+            (l, self.environment_probability * pdf)
+        } else {
+            (env.radiance(d), 0.0)
+        })
+    }
+
     /// [`Lights::sample`] in a scene with an environment or punctual
     /// lights: the running sums pick an emitter, a punctual light
     /// ([`Punctual::sample`]) or, past the last, the environment, whose

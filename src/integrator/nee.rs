@@ -291,14 +291,14 @@ pub fn escaped(
         return None;
     }
     let mis = estimator.samples_lights() && bsdf_pdf != 0.0;
-    let mut seen = env.map(|env| {
-        let l = env.radiance(d);
-        if !mis {
-            return l;
-        }
-        let w = power_heuristic(bsdf_pdf, lights.environment_pdf(d));
-        V3::new(l.x * w, l.y * w, l.z * w)
-    });
+    let mut seen = if mis {
+        (lights.environment_radiance_and_pdf(d)).map(|(l, pdf)| {
+            let w = power_heuristic(bsdf_pdf, pdf);
+            V3::new(l.x * w, l.y * w, l.z * w)
+        })
+    } else {
+        env.map(|env| env.radiance(d))
+    };
     for (l, pdf) in lights.suns_seen(d) {
         let w = if mis {
             power_heuristic(bsdf_pdf, pdf)
