@@ -66,8 +66,9 @@ pub struct AovColumns {
     /// 1 while the path has met no non-specular vertex (those AOVs are
     /// still to be recorded), else 0.
     pub pending: Vec<u8>,
-    /// Each recorded AOV's value per row (its `none` until recorded).
-    pub values: Vec<(Aov, Vec<[f32; 3]>)>,
+    /// Each recorded AOV, when it is recorded, and its value per row (its
+    /// `none` until recorded).
+    pub values: Vec<(Aov, When, Vec<[f32; 3]>)>,
 }
 
 impl AovColumns {
@@ -76,14 +77,16 @@ impl AovColumns {
         Self {
             surface: aovs.iter().any(|a| a.def().when == When::FirstNonSpecular),
             pending: vec![0; rows],
-            values: recorded.map(|a| (a, vec![a.def().none; rows])).collect(),
+            values: recorded
+                .map(|a| (a, a.def().when, vec![a.def().none; rows]))
+                .collect(),
         }
     }
 
     /// Rows `rows` start new paths: nothing recorded yet.
     pub fn reset(&mut self, rows: std::ops::Range<usize>) {
         self.pending[rows.clone()].fill(1);
-        for (aov, col) in &mut self.values {
+        for (aov, _, col) in &mut self.values {
             col[rows.clone()].fill(aov.def().none);
         }
     }
@@ -92,7 +95,7 @@ impl AovColumns {
     #[inline]
     pub fn sample(&self, i: usize) -> AovSample {
         let mut sample = AovSample::NONE;
-        for (aov, col) in &self.values {
+        for (aov, _, col) in &self.values {
             sample.set(*aov, col[i]);
         }
         sample
@@ -101,7 +104,7 @@ impl AovColumns {
     #[inline]
     fn move_row(&mut self, from: usize, to: usize) {
         self.pending[to] = self.pending[from];
-        for (_, col) in &mut self.values {
+        for (_, _, col) in &mut self.values {
             col[to] = col[from];
         }
     }
@@ -109,7 +112,7 @@ impl AovColumns {
     #[inline]
     fn swap_rows(&mut self, a: usize, b: usize) {
         self.pending.swap(a, b);
-        for (_, col) in &mut self.values {
+        for (_, _, col) in &mut self.values {
             col.swap(a, b);
         }
     }
@@ -390,7 +393,7 @@ mod tests {
             let aov = with.aov.as_mut().unwrap();
             aov.reset(0..n);
             for i in 0..n {
-                for (a, col) in &mut aov.values {
+                for (a, _, col) in &mut aov.values {
                     col[i] = [*a as usize as f32, i as f32, -(i as f32)];
                 }
                 aov.pending[i] = (i % 2) as u8;

@@ -97,6 +97,9 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, for
     let Some(aov) = queue.aov.as_mut() else {
         return;
     };
+    if depth > 0 && !aov.surface {
+        return;
+    }
     for i in 0..n {
         let hit = queue.hit[i];
         if hit == NO_HIT {
@@ -109,9 +112,8 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, for
         let o = V3::new(queue.o[0][i], queue.o[1][i], queue.o[2][i]);
         let d = V3::new(queue.d[0][i], queue.d[1][i], queue.d[2][i]);
         let v = Vertex::new(tables, hit, (o, d), queue.t[i], forward);
-        for (a, col) in &mut aov.values {
-            let when = a.def().when;
-            if depth == 0 && when == When::CameraHit || first && when == When::FirstNonSpecular {
+        for (a, when, col) in &mut aov.values {
+            if depth == 0 && *when == When::CameraHit || first && *when == When::FirstNonSpecular {
                 col[i] = value(*a, &v);
             }
         }
