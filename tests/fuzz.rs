@@ -1222,34 +1222,9 @@ proptest! {
 
 /// The shipped textured GLB, split into its JSON and its binary chunk.
 fn textured_glb() -> (serde_json::Value, Vec<u8>) {
-    let b =
-        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb")).unwrap();
-    let len = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
-    let json_len = len(12);
-    let json = serde_json::from_slice(&b[20..20 + json_len]).unwrap();
-    let bin_at = 20 + json_len;
-    let bin = b[bin_at + 8..bin_at + 8 + len(bin_at)].to_vec();
-    (json, bin)
-}
-
-/// A GLB of `json` and `bin` (each chunk padded to 4 bytes, lengths right).
-fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
-    let mut j = serde_json::to_vec(json).unwrap();
-    j.resize(j.len().next_multiple_of(4), b' ');
-    let mut b = bin.to_vec();
-    b.resize(b.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
+    split_glb(
+        &std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured.glb")).unwrap(),
+    )
 }
 
 /// CRC-32 (ISO-HDLC, as PNG's chunks use).
@@ -2034,11 +2009,7 @@ fn hostile_meshopt_glb(edits: &[MeshoptEdit]) -> Vec<u8> {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/meshopt/textured-meshopt.glb"),
     )
     .unwrap();
-    let len = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
-    let json_len = len(12);
-    let mut json: serde_json::Value = serde_json::from_slice(&b[20..20 + json_len]).unwrap();
-    let bin_at = 20 + json_len;
-    let mut bin = b[bin_at + 8..bin_at + 8 + len(bin_at)].to_vec();
+    let (mut json, mut bin) = split_glb(&b);
     let compressed: Vec<usize> = (json["bufferViews"].as_array().unwrap().iter())
         .enumerate()
         .filter(|(_, v)| v.get("extensions").is_some())
@@ -2074,21 +2045,7 @@ fn hostile_meshopt_glb(edits: &[MeshoptEdit]) -> Vec<u8> {
     if let Some(t) = truncate {
         bin.truncate(t);
     }
-    let mut j = serde_json::to_vec(&json).unwrap();
-    j.resize(j.len().next_multiple_of(4), b' ');
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + j.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    glb(&json, &bin)
 }
 
 proptest! {

@@ -366,15 +366,15 @@ impl Reader<'_> {
                     ),
                 )
             })?;
-        self.charge(len as u64, &at)?;
+        self.charge(len as u64, &format!("{len} decoded bytes"), &at)?;
         c.decode(&source[c.byte_offset..end])
             .map_err(|e| self.err(&at, e))
     }
 
-    /// Adds `bytes` to the decoded bytes, refusing them past the budget
-    /// ([`DECODE_RATIO`] times the file's buffers' bytes, plus
-    /// [`DECODE_ALLOWANCE`]).
-    fn charge(&self, bytes: u64, at: &str) -> Result<(), AssetError> {
+    /// Adds `bytes` (`what`: "1024 elements") to the decoded bytes,
+    /// refusing them past the budget ([`DECODE_RATIO`] times the file's
+    /// buffers' bytes, plus [`DECODE_ALLOWANCE`]).
+    fn charge(&self, bytes: u64, what: &str, at: &str) -> Result<(), AssetError> {
         let buffer_bytes: u64 = self.buffers.iter().map(|b| b.len() as u64).sum();
         let decoded = bytes.saturating_add(self.decoded.get());
         let budget = buffer_bytes
@@ -384,7 +384,7 @@ impl Reader<'_> {
             return Err(self.err(
                 at,
                 format!(
-                    "{bytes} decoded bytes would bring the decoded data to {decoded} bytes, \
+                    "{what} would bring the decoded data to {decoded} bytes, \
                      more than {DECODE_RATIO} times the file's {buffer_bytes} bytes of buffers \
                      (plus {DECODE_ALLOWANCE})"
                 ),
@@ -568,23 +568,8 @@ impl Reader<'_> {
                 None
             }
         };
-        let decoded = (count as u64)
-            .saturating_mul(std::mem::size_of::<T>() as u64)
-            .saturating_add(self.decoded.get());
-        let budget = buffer_bytes
-            .saturating_mul(DECODE_RATIO)
-            .saturating_add(DECODE_ALLOWANCE);
-        if decoded > budget {
-            return Err(self.err(
-                at,
-                format!(
-                    "{count} elements would bring the decoded data to {decoded} bytes, more \
-                     than {DECODE_RATIO} times the file's {buffer_bytes} bytes of buffers \
-                     (plus {DECODE_ALLOWANCE})"
-                ),
-            ));
-        }
-        self.decoded.set(decoded);
+        let bytes = (count as u64).saturating_mul(std::mem::size_of::<T>() as u64);
+        self.charge(bytes, &format!("{count} elements"), at)?;
         let mut out = match data {
             Some(elements) => elements.iter().map(&one).collect(),
             None => vec![zero; count],

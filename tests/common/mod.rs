@@ -405,3 +405,33 @@ pub fn tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     walk(dir, dir, &mut out);
     out
 }
+
+/// A GLB's JSON and binary chunk (the file's own lengths, unchecked).
+pub fn split_glb(b: &[u8]) -> (serde_json::Value, Vec<u8>) {
+    let len = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = len(12);
+    let json = serde_json::from_slice(&b[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let bin = b[bin_at + 8..bin_at + 8 + len(bin_at)].to_vec();
+    (json, bin)
+}
+
+/// A GLB of `json` and `bin` (each chunk padded to 4 bytes, lengths right).
+pub fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    j.resize(j.len().next_multiple_of(4), b' ');
+    let mut b = bin.to_vec();
+    b.resize(b.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
