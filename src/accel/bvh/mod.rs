@@ -115,6 +115,17 @@ pub struct BvhOptions {
     pub width: SimdWidth,
 }
 
+impl BvhOptions {
+    /// [`width`](Self::width), or [`SimdWidth::W8`] where the CPU lacks it.
+    pub fn usable_width(&self) -> SimdWidth {
+        if self.width.is_available() {
+            self.width
+        } else {
+            SimdWidth::W8
+        }
+    }
+}
+
 impl Default for BvhOptions {
     /// [`SimdWidth::detect`]: the widest width this CPU runs.
     fn default() -> Self {
@@ -370,11 +381,7 @@ impl Bvh {
         let tris = shapes.triangles;
         let all = shapes.len();
         assert!(all < (1 << 29), "a Bvh holds fewer than 2^29 primitives");
-        let width = if options.width.is_available() {
-            options.width
-        } else {
-            SimdWidth::W8
-        };
+        let width = options.usable_width();
         let mut bvh = if all <= small::MAX_PRIMS {
             small::build(shapes, width)
         } else {
@@ -415,16 +422,28 @@ impl Bvh {
         options: &BvhOptions,
     ) -> Option<Bvh> {
         let started = Instant::now();
-        let width = if options.width.is_available() {
-            options.width
-        } else {
-            SimdWidth::W8
-        };
+        let width = options.usable_width();
         let options = BvhOptions { width };
         let two_level = TwoLevel::build(placements, &options)?;
         Some(Bvh {
+            build_seconds: started.elapsed().as_secs_f64(),
+            two_level: Some(Box::new(two_level)),
+            ..Bvh::empty(Child::EMPTY, width, counts)
+        })
+    }
+
+    /// The two-level hierarchy this one traces through, where it is one
+    /// (instancing).
+    pub fn two_level(&self) -> Option<&TwoLevel> {
+        self.two_level.as_deref()
+    }
+
+    /// A hierarchy of `width` rooted at `root`, of `counts` primitives per
+    /// kind, with no nodes, packs or plans yet (the builds fill them in).
+    fn empty(root: Child, width: SimdWidth, counts: [usize; Shapes::COUNT]) -> Bvh {
+        Bvh {
             nodes: Vec::new(),
-            root: Child::EMPTY,
+            root,
             width,
             packs8: Packs::default(),
             #[cfg(target_arch = "x86_64")]
@@ -433,15 +452,9 @@ impl Bvh {
             in_order: false,
             packets: packet::Plan::default(),
             counts,
-            build_seconds: started.elapsed().as_secs_f64(),
-            two_level: Some(Box::new(two_level)),
-        })
-    }
-
-    /// The two-level hierarchy this one traces through, where it is one
-    /// (instancing).
-    pub fn two_level(&self) -> Option<&TwoLevel> {
-        self.two_level.as_deref()
+            build_seconds: 0.0,
+            two_level: None,
+        }
     }
 
     /// The hierarchy over `shapes` at `width`, built with `params`, but for
@@ -509,20 +522,7 @@ impl Bvh {
             split: &split,
         });
         let topo = build::build(prims, params);
-        let mut bvh = Bvh {
-            nodes: Vec::new(),
-            root: topo.root,
-            width,
-            packs8: Packs::default(),
-            #[cfg(target_arch = "x86_64")]
-            packs16: Packs::default(),
-            interleave: false,
-            in_order: false,
-            packets: packet::Plan::default(),
-            counts,
-            build_seconds: 0.0,
-            two_level: None,
-        };
+        let mut bvh = Bvh::empty(topo.root, width, counts);
         match width {
             SimdWidth::W8 => bvh.packs8 = Packs::build(&topo, shapes, &unbounded),
             #[cfg(target_arch = "x86_64")]
