@@ -258,14 +258,22 @@ impl<R: Lanes> TrianglePack<R> {
     /// Pack up to [`Lanes::LANES`] triangles with their indices.
     pub fn pack(tris: &[(u32, TriangleEdges)]) -> Self {
         assert!(tris.len() <= R::LANES);
+        // On the stack: a pack is made per leaf, and a `Vec` per field was
+        // a tenth of a 100k-triangle build.
         let lane = |f: &dyn Fn(&TriangleEdges) -> f32| {
-            let v: Vec<f32> = tris.iter().map(|(_, t)| f(t)).collect();
-            R::from_slice(&v, 0.0)
+            let mut v = [0.0f32; 16];
+            for (x, (_, t)) in v.iter_mut().zip(tris) {
+                *x = f(t);
+            }
+            R::from_slice(&v[..tris.len()], 0.0)
         };
         let v3 = |g: &dyn Fn(&TriangleEdges) -> Vec3| {
             V3::new(lane(&|t| g(t).x), lane(&|t| g(t).y), lane(&|t| g(t).z))
         };
-        let index: Vec<i32> = tris.iter().map(|(i, _)| *i as i32).collect();
+        let mut index = [0i32; 16];
+        for (x, (i, _)) in index.iter_mut().zip(tris) {
+            *x = *i as i32;
+        }
         Self {
             tri: V3Tri {
                 v0: v3(&|t| t.v0),
@@ -273,7 +281,7 @@ impl<R: Lanes> TrianglePack<R> {
                 e2: v3(&|t| t.e2),
                 n: v3(&|t| t.n),
             },
-            index: R::index_from_slice(&index, -1),
+            index: R::index_from_slice(&index[..tris.len()], -1),
         }
     }
 

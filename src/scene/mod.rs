@@ -41,6 +41,9 @@ pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");
 /// triangle of f32 vertices that is not a sliver or collinear has.
 const MIN_RELATIVE_AREA: f32 = 1e-12;
 
+/// Bytes handed to the content hash at a time ([`Scene::content_hash`]).
+const HASH_CHUNK: usize = 1 << 16;
+
 /// `normalize(a × b)`, or zero when `a` and `b` span no area. The test is
 /// relative, so a triangle's size does not matter, only its shape: when
 /// `a × b` overflows or its length underflows (edges longer than about
@@ -554,9 +557,17 @@ impl Scene {
     /// geometry, materials and camera (not the name).
     pub fn content_hash(&self) -> u128 {
         let mut h = xxhash_rust::xxh3::Xxh3::new();
+        // The numbers go to the hash 64 KiB at a time: XXH3's digest does
+        // not depend on how its input is cut, and an `update` per number
+        // cost more than reading a 100k-triangle glTF file.
+        let mut buf = Vec::with_capacity(HASH_CHUNK);
         let mut put = |v: Vec3| {
             for c in v.to_array() {
-                h.update(&c.to_bits().to_le_bytes());
+                buf.extend_from_slice(&c.to_bits().to_le_bytes());
+            }
+            if buf.len() >= HASH_CHUNK {
+                h.update(&buf);
+                buf.clear();
             }
         };
         let c = &self.camera;
@@ -610,6 +621,7 @@ impl Scene {
             put(s.center);
             put(Vec3::new(s.radius, s.material as f32, -1.0));
         }
+        h.update(&buf);
         for t in self.texturing.textures.iter() {
             for k in [t.width() as u64, t.height() as u64, t.is_srgb() as u64] {
                 h.update(&k.to_le_bytes());
@@ -634,5 +646,30 @@ impl Scene {
             });
         }
         h.digest128()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The content hash is fed in chunks ([`HASH_CHUNK`]): a number in
+    /// the first, a middle or the last (partial) chunk still changes it.
+    #[test]
+    fn content_hash_sees_every_number_however_it_is_chunked() {
+        let mut scene = Scene::cornell();
+        let t = scene.triangles[0];
+        // 15 numbers of 4 bytes per triangle: a few chunks and a part.
+        let n = 3 * HASH_CHUNK / 60 + 7;
+        scene.triangles.extend((0..n).map(|i| Triangle {
+            v: t.v.map(|v| v + Vec3::splat(i as f32)),
+            ..t
+        }));
+        let h = scene.content_hash();
+        for i in [0, scene.triangles.len() / 2, scene.triangles.len() - 1] {
+            let mut moved = scene.clone();
+            moved.triangles[i].v[2].x += 1.0;
+            assert_ne!(moved.content_hash(), h, "triangle {i} is not hashed");
+        }
     }
 }
