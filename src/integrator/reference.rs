@@ -30,6 +30,7 @@ use crate::accel::shape::{OwnedShapes, closest_hit_brute_force_shapes};
 use crate::accel::triangle::Hit;
 use crate::film::{AovSample, accumulate};
 use crate::integrator::aov::{Vertex, record};
+use crate::integrator::bsdf::is_delta;
 use crate::integrator::lights::Lights;
 use crate::integrator::nee::{
     Estimator, connect_shaded, emission_weight, escaped, survival as survival_of,
@@ -230,7 +231,7 @@ impl ReferenceTracer {
             if depth == 0 {
                 record(AovSet::EVERY, When::CameraHit, &v, a);
             }
-            if !material.model.is_delta() {
+            if !is_delta(material.model) {
                 record(AovSet::EVERY, When::FirstNonSpecular, &v, a);
                 aov = None;
             }
@@ -264,7 +265,7 @@ impl ReferenceTracer {
             }
             beta /= survival;
         }
-        if est.samples_lights() && material.model.is_delta() {
+        if est.samples_lights() && is_delta(material.model) {
             est.skip_light_numbers(sampler, path);
         } else if est.samples_lights() {
             let u = est.light_numbers(sampler, path);

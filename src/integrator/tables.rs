@@ -10,7 +10,8 @@
 use crate::accel::shape::{Family, Kinds, Make, Shape, Shapes, VisitOne, kind_of};
 use crate::accel::simd::prefetch_lines;
 use crate::accel::triangle::hit_point;
-use crate::integrator::bsdf::Surface;
+use crate::integrator::bsdf::surface::Texels;
+use crate::integrator::bsdf::{Constants, Surface};
 use crate::integrator::surface::SurfaceHit;
 use crate::math::{V3, Vec3x8};
 use crate::scene::material::Coverage;
@@ -60,16 +61,12 @@ pub struct Tables {
     emitting_first: u32,
     /// Scattering model of each material.
     pub model: Vec<Model>,
-    /// Each material's colour as [`Surface::tint`] takes it, per RGB
-    /// channel (columns indexed by material).
-    pub tint: [Vec<f32>; 3],
+    /// Each material's constant scattering parameters, per model
+    /// ([`Constants`]).
+    constants: Constants,
     /// Each material's albedo AOV (its reflectance clamped to [0, 1]),
     /// RGB, indexed by material.
     pub albedo: Vec<[f32; 3]>,
-    /// Each material's GGX roughness (metal).
-    pub alpha: Vec<f32>,
-    /// Each material's index of refraction (glass).
-    pub ior: Vec<f32>,
     /// Smooth triangles' vertices and vertex normals, per triangle (empty
     /// when the scene has none: [`Scene::vertex_normals`]).
     pub smooth: Vec<([glam::Vec3; 3], [glam::Vec3; 3])>,
@@ -77,13 +74,6 @@ pub struct Tables {
     /// per triangle (empty when the scene has none:
     /// [`Scene::texturing`]).
     pub uv: Vec<([glam::Vec3; 3], TriangleUv)>,
-    /// Each material's metalness (metallic-roughness, transmission).
-    pub metallic: Vec<f32>,
-    /// Each material's transmission factor and thin flag (transmission).
-    pub transmission: [Vec<f32>; 2],
-    /// Each material's `KHR_materials_specular` strength and `F0` colour
-    /// R, G, B ([`Surface::specular`], [`Surface::f0`]).
-    pub specular: [Vec<f32>; 4],
     /// Whether some material absorbs light inside it
     /// ([`Material::absorbs`]): paths are then attenuated on the way out
     /// ([`Tables::transmittance`]).
@@ -136,8 +126,6 @@ impl Tables {
             (Some(a), Some(b)) => a..b + 1,
             _ => 0..0,
         };
-        let surfaces: Vec<Surface<f32>> = scene.materials.iter().map(Surface::of).collect();
-        let tint = |s: &Surface<f32>| [s.tint.x, s.tint.y, s.tint.z];
         Self {
             firsts: kinds.firsts,
             surfaces: kinds.surfaces,
@@ -161,7 +149,7 @@ impl Tables {
                 .collect(),
             big: materials.len() * size_of::<f32x8>() > BIG_TABLE,
             material_of: materials,
-            tint: [0, 1, 2].map(|c| surfaces.iter().map(|s| tint(s)[c]).collect()),
+            constants: Constants::new(&scene.materials),
             albedo: (scene.materials.iter())
                 .map(|m| {
                     m.reflectance
@@ -169,8 +157,6 @@ impl Tables {
                         .to_array()
                 })
                 .collect(),
-            alpha: surfaces.iter().map(|s| s.alpha).collect(),
-            ior: surfaces.iter().map(|s| s.ior).collect(),
             smooth: if scene.vertex_normals.is_empty() {
                 Vec::new()
             } else {
@@ -183,17 +169,6 @@ impl Tables {
                 .zip(&scene.texturing.uv)
                 .map(|(t, uv)| (t.v, *uv))
                 .collect(),
-            metallic: surfaces.iter().map(|s| s.metallic).collect(),
-            transmission: [
-                surfaces.iter().map(|s| s.transmission).collect(),
-                surfaces.iter().map(|s| s.thin).collect(),
-            ],
-            specular: [
-                surfaces.iter().map(|s| s.specular).collect(),
-                surfaces.iter().map(|s| s.f0.x).collect(),
-                surfaces.iter().map(|s| s.f0.y).collect(),
-                surfaces.iter().map(|s| s.f0.z).collect(),
-            ],
             absorbing: scene.materials.iter().any(Material::absorbs),
             materials: scene.materials.clone(),
             textured: Model::ALL.map(|model| {
@@ -483,53 +458,16 @@ impl Tables {
     }
 
     /// The surfaces of eight triangles (any row: lanes past the live paths
-    /// repeat one), all of model `model`: diffuse ones from the
-    /// per-triangle BRDF columns, the others through their materials.
+    /// repeat one), all of model `model`, from their materials' constant
+    /// parameters ([`Constants::gather`]; a model whose parameters are the
+    /// diffuse BRDF reads it from the primitives' rows).
     #[inline(always)]
     pub fn surfaces(&self, model: Model, tris: &[usize; 8]) -> Surface<f32x8> {
-        if model == Model::Diffuse {
+        let mats = || tris.map(|t| self.material_of[t] as usize);
+        self.constants.gather(model, mats, || {
             let [_, _, _, r, g, b, ..] = self.rows_8(tris);
-            return Surface::diffuse(V3::new(r, g, b));
-        }
-        let mats = tris.map(|t| self.material_of[t] as usize);
-        let of_mat = |col: &Vec<f32>| gather(&mats, |m| col[m]);
-        Surface {
-            model,
-            tint: V3::new(
-                of_mat(&self.tint[0]),
-                of_mat(&self.tint[1]),
-                of_mat(&self.tint[2]),
-            ),
-            alpha: of_mat(&self.alpha),
-            ior: of_mat(&self.ior),
-            metallic: match model {
-                Model::MetallicRoughness | Model::Transmission => of_mat(&self.metallic),
-                _ => f32x8::ZERO,
-            },
-            transmission: match model {
-                Model::Transmission => of_mat(&self.transmission[0]),
-                _ => f32x8::ZERO,
-            },
-            thin: match model {
-                Model::Transmission => of_mat(&self.transmission[1]),
-                _ => f32x8::ZERO,
-            },
-            specular: match model {
-                Model::MetallicRoughness | Model::Transmission => of_mat(&self.specular[0]),
-                _ => f32x8::splat(1.0),
-            },
-            f0: match model {
-                Model::MetallicRoughness | Model::Transmission => V3::new(
-                    of_mat(&self.specular[1]),
-                    of_mat(&self.specular[2]),
-                    of_mat(&self.specular[3]),
-                ),
-                _ => {
-                    let f0 = f32x8::splat(crate::scene::material::DIELECTRIC_F0);
-                    V3::new(f0, f0, f0)
-                }
-            },
-        }
+            V3::new(r, g, b)
+        })
     }
 
     /// Whether some material absorbs light inside it
@@ -663,8 +601,8 @@ impl Tables {
     /// The scattering of the surface at `hit` (one lane): its material's
     /// ([`Surface::of`]), or, where the material is textured or the
     /// triangle has vertex colours, with those looked up at the hit
-    /// ([`Surface::textured`]). The one lookup both engines make, so they
-    /// scatter with the same bits.
+    /// ([`Surface::at`] its texels). The one lookup both engines make, so
+    /// they scatter with the same bits.
     #[inline]
     pub fn scattering(&self, hit: &SurfaceHit<f32>) -> Surface<f32> {
         self.scattering_at(hit.prim as usize, hit.material, hit.uv, hit.p)
@@ -724,30 +662,14 @@ impl Tables {
         if !self.is_textured(m.model) {
             return Surface::of(m);
         }
-        let lookup = |t: &TextureRef| self.lookup(t, uv);
         let colour = self.colour_at(prim, m, uv, p);
-        let (metal, rough) = match &m.maps.metallic_roughness {
-            Some(t) => {
-                let c = lookup(t);
-                (c[2], c[1])
-            }
-            None => (1.0, 1.0),
-        };
-        let transmission = m.maps.transmission.as_ref().map_or(1.0, |t| lookup(t)[0]);
-        let specular = m.maps.specular.as_ref().map_or(1.0, |t| lookup(t)[3]);
-        let specular_colour = m
-            .maps
-            .specular_colour
-            .as_ref()
-            .map_or(glam::Vec3::ONE, |t| {
-                let c = lookup(t);
-                glam::Vec3::new(c[0], c[1], c[2])
-            });
-        Surface::textured(
+        Surface::at(
             m,
-            colour,
-            (metal, rough, transmission),
-            (specular, specular_colour),
+            &AtHit {
+                tables: self,
+                uv,
+                colour,
+            },
         )
     }
 
@@ -766,28 +688,36 @@ impl Tables {
         }
         let p = lanes3(hit.p);
         let uv = hit.uv.map(|set| set.map(|c| c.to_array()));
-        let lane: [Surface<f32>; 8] = std::array::from_fn(|l| {
+        Surface::lanes(model, |l| {
             let uv = uv.map(|set| set.map(|c| c[l]));
             self.scattering_at(tris[l], hit.material[l], uv, p[l])
-        });
-        let col = |f: fn(&Surface<f32>) -> f32| f32x8::new(lane.map(|s| f(&s)));
-        Surface {
-            model,
-            tint: V3::new(col(|s| s.tint.x), col(|s| s.tint.y), col(|s| s.tint.z)),
-            alpha: col(|s| s.alpha),
-            ior: col(|s| s.ior),
-            metallic: col(|s| s.metallic),
-            transmission: col(|s| s.transmission),
-            thin: col(|s| s.thin),
-            specular: col(|s| s.specular),
-            f0: V3::new(col(|s| s.f0.x), col(|s| s.f0.y), col(|s| s.f0.z)),
-        }
+        })
     }
 
     /// The one model every material has, if they all have the same.
     pub fn single_model(&self) -> Option<Model> {
         let first = *self.model.first()?;
         self.model.iter().all(|m| *m == first).then_some(first)
+    }
+}
+
+/// What a material's textures read at a hit ([`Tables::scattering`]):
+/// its texture coordinates there, and its colour (base colour texture ×
+/// vertex colours).
+struct AtHit<'a> {
+    tables: &'a Tables,
+    uv: [[f32; 2]; 2],
+    colour: glam::Vec3,
+}
+
+impl Texels for AtHit<'_> {
+    #[inline]
+    fn colour(&self) -> glam::Vec3 {
+        self.colour
+    }
+    #[inline]
+    fn read(&self, map: Option<&TextureRef>) -> Option<[f32; 4]> {
+        map.map(|t| self.tables.lookup(t, self.uv))
     }
 }
 
@@ -902,24 +832,6 @@ fn replace_lanes(v: Vec3x8, mut new: impl FnMut(usize) -> Option<V3<f32>>) -> Ve
         }
     }
     V3::new(f32x8::from(x), f32x8::from(y), f32x8::from(z))
-}
-
-/// `value(index)` for eight indices, as lanes. Written out lane by lane
-/// so the lanes are built in registers: an array `map` here compiled to a
-/// call that stored the eight values to memory, and the vector load then
-/// waited on those stores (a sixth of the bounce stage, measured).
-#[inline(always)]
-fn gather(idx: &[usize; 8], value: impl Fn(usize) -> f32) -> f32x8 {
-    f32x8::new([
-        value(idx[0]),
-        value(idx[1]),
-        value(idx[2]),
-        value(idx[3]),
-        value(idx[4]),
-        value(idx[5]),
-        value(idx[6]),
-        value(idx[7]),
-    ])
 }
 
 #[cfg(test)]

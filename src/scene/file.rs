@@ -497,14 +497,14 @@ fn material(t: &Toml, name: &str, m: &Spanned<MaterialFile>) -> Result<Material,
         })?,
     };
     let fields = MaterialFields { t, name, model };
-    let reflectance = match (&f.reflectance, model) {
-        (Some(r), Model::Glass) => {
-            fields.unused(Some(r.span()), "reflectance", "diffuse, mirror and metal")?;
+    let reflectance = match (&f.reflectance, model.reads("reflectance")) {
+        (Some(r), false) => {
+            fields.unused(Some(r.span()), "reflectance")?;
             Vec3::ONE
         }
-        (Some(r), _) => fields.unit_color(r, "reflectance")?,
-        (None, Model::Glass) => Vec3::ONE,
-        (None, _) => {
+        (Some(r), true) => fields.unit_color(r, "reflectance")?,
+        (None, false) => Vec3::ONE,
+        (None, true) => {
             return Err(t.err(
                 m.span(),
                 &format!("materials.{name}.reflectance"),
@@ -546,12 +546,11 @@ struct MaterialFields<'a> {
 impl MaterialFields<'_> {
     /// Refuses a field the model does not read (`present`: where it is
     /// written), rather than ignoring it.
-    fn unused(
-        &self,
-        present: Option<Range<usize>>,
-        key: &str,
-        models: &str,
-    ) -> Result<(), SceneError> {
+    fn unused(&self, present: Option<Range<usize>>, key: &str) -> Result<(), SceneError> {
+        if self.model.reads(key) {
+            return Ok(());
+        }
+        let models = Model::readers(key);
         match present {
             Some(span) => Err(self.t.err(
                 span,
@@ -577,17 +576,11 @@ impl MaterialFields<'_> {
         Ok(c)
     }
 
-    /// Glass's `ior` and `transmittance` (refused on other models; the
-    /// transmission model reads `ior`).
+    /// `ior` and `transmittance` (each refused on models that do not
+    /// read it).
     fn glass(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
-        if self.model != Model::Glass {
-            let t = f.transmittance.as_ref().map(|v| v.span());
-            self.unused(t, "transmittance", "glass")?;
-            if self.model != Model::Transmission {
-                let ior = f.ior.as_ref().map(|v| v.span());
-                return self.unused(ior, "ior", "glass and transmission");
-            }
-        }
+        self.unused(f.transmittance.as_ref().map(|v| v.span()), "transmittance")?;
+        self.unused(f.ior.as_ref().map(|v| v.span()), "ior")?;
         if let Some(ior) = &f.ior {
             let v = *ior.get_ref();
             let range = super::material::IOR_RANGE;
@@ -610,11 +603,9 @@ impl MaterialFields<'_> {
         Ok(())
     }
 
-    /// Metal's `alpha` (refused on other models).
+    /// `alpha` (refused on models that do not read it).
     fn metal(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
-        if self.model != Model::Metal {
-            return self.unused(f.alpha.as_ref().map(|v| v.span()), "alpha", "metal");
-        }
+        self.unused(f.alpha.as_ref().map(|v| v.span()), "alpha")?;
         if let Some(alpha) = &f.alpha {
             let v = *alpha.get_ref();
             if !(0.0..=1.0).contains(&v) {
@@ -629,8 +620,8 @@ impl MaterialFields<'_> {
         Ok(())
     }
 
-    /// Metallic-roughness's `metallic` and `roughness`, each in [0, 1]
-    /// (refused on other models).
+    /// `metallic` and `roughness`, each in [0, 1] (refused on models that
+    /// do not read them).
     fn metallic_roughness(
         &self,
         f: &MaterialFile,
@@ -641,10 +632,7 @@ impl MaterialFields<'_> {
             ("roughness", &f.roughness, &mut material.roughness),
         ] {
             let Some(value) = value else { continue };
-            if !matches!(self.model, Model::MetallicRoughness | Model::Transmission) {
-                let models = "metallic-roughness and transmission";
-                self.unused(Some(value.span()), key, models)?;
-            }
+            self.unused(Some(value.span()), key)?;
             let v = *value.get_ref();
             if !(0.0..=1.0).contains(&v) {
                 return Err(self.t.err(
@@ -660,14 +648,14 @@ impl MaterialFields<'_> {
 }
 
 impl MaterialFields<'_> {
-    /// Transmission's `transmission` (in [0, 1], 1 by default) and `thin`
-    /// (false by default: the surface bounds a solid), refused on other
-    /// models.
+    /// `transmission` (in [0, 1], 1 by default) and `thin` (false by
+    /// default: the surface bounds a solid), refused on models that do
+    /// not read them.
     fn transmission(&self, f: &MaterialFile, material: &mut Material) -> Result<(), SceneError> {
-        if self.model != Model::Transmission {
-            let t = f.transmission.as_ref().map(|v| v.span());
-            self.unused(t, "transmission", "transmission")?;
-            return self.unused(f.thin.as_ref().map(|v| v.span()), "thin", "transmission");
+        self.unused(f.transmission.as_ref().map(|v| v.span()), "transmission")?;
+        self.unused(f.thin.as_ref().map(|v| v.span()), "thin")?;
+        if !self.model.reads("transmission") {
+            return Ok(());
         }
         material.transmission = 1.0;
         if let Some(value) = &f.transmission {

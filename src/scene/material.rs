@@ -3,8 +3,13 @@
 use super::texture::TextureRef;
 use glam::Vec3;
 
-/// How a material scatters light. Each model has one scattering routine
-/// (in [`crate::integrator::bsdf`]) that both engines call.
+/// How a material scatters light. Each model has one scattering type (in
+/// [`crate::integrator::bsdf`], listed there once) that both engines
+/// call; what the scene knows of it — its name, the material fields it
+/// reads, its content hash — is its row of [`Model::def`]. A new model is
+/// its variant, its entry in [`Model::ALL`] and its row here, its file in
+/// the `bsdf` module with its entry in that module's list, and its new
+/// fields (if any) in the scene format.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Model {
     /// Ideal diffuse (Lambertian) reflection, BRDF `ρ/π`, on both sides of
@@ -44,17 +49,8 @@ pub enum Model {
 }
 
 impl Model {
-    /// The names the scene format gives the models.
-    pub const NAMES: &[&str] = &[
-        "diffuse",
-        "mirror",
-        "glass",
-        "metal",
-        "metallic-roughness",
-        "transmission",
-    ];
-
-    /// Every model, in the order of [`Model::NAMES`].
+    /// Every model, in the order of their variants (the order the
+    /// wavefront engine groups paths in).
     pub const ALL: [Model; 6] = [
         Model::Diffuse,
         Model::Mirror,
@@ -64,37 +60,132 @@ impl Model {
         Model::Transmission,
     ];
 
+    /// The names the scene format gives the models, in the order of
+    /// [`Model::ALL`].
+    pub const NAMES: [&str; Self::ALL.len()] = {
+        let mut names = [""; Self::ALL.len()];
+        let mut i = 0;
+        while i < names.len() {
+            names[i] = Self::ALL[i].def().name;
+            i += 1;
+        }
+        names
+    };
+
     /// The model named `name` in scene files.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "diffuse" => Some(Model::Diffuse),
-            "mirror" => Some(Model::Mirror),
-            "glass" => Some(Model::Glass),
-            "metal" => Some(Model::Metal),
-            "metallic-roughness" => Some(Model::MetallicRoughness),
-            "transmission" => Some(Model::Transmission),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|m| m.name() == name)
     }
 
     /// The model's name in scene files.
     pub fn name(self) -> &'static str {
-        match self {
-            Model::Diffuse => "diffuse",
-            Model::Mirror => "mirror",
-            Model::Glass => "glass",
-            Model::Metal => "metal",
-            Model::MetallicRoughness => "metallic-roughness",
-            Model::Transmission => "transmission",
+        self.def().name
+    }
+
+    /// Whether the model reads the material field `field` (a key of the
+    /// scene format's material table, as [`ModelDef::fields`] lists them).
+    pub fn reads(self, field: &str) -> bool {
+        self.def().fields.contains(&field)
+    }
+
+    /// The names of the models that read `field`, for messages: "a, b
+    /// and c".
+    pub fn readers(field: &str) -> String {
+        let names: Vec<&str> = (Self::ALL.into_iter())
+            .filter(|m| m.reads(field))
+            .map(Model::name)
+            .collect();
+        match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => names.join(""),
         }
     }
 
-    /// Whether the model scatters only into isolated directions (a delta
-    /// lobe): next-event estimation takes no shadow ray there, and the
-    /// emission its scattered ray finds counts in full.
-    pub fn is_delta(self) -> bool {
-        matches!(self, Model::Mirror | Model::Glass)
+    /// What the scene knows of the model: one row per model. (How it
+    /// scatters is its [`Bsdf`](crate::integrator::bsdf::surface::Bsdf)
+    /// implementation's business.)
+    pub const fn def(self) -> ModelDef {
+        match self {
+            Model::Diffuse => ModelDef {
+                name: "diffuse",
+                fields: &["reflectance"],
+                // The first model hashes as nothing: hashes of scenes
+                // from before models existed stay what they were.
+                words: |_| vec![],
+                solid: |_| false,
+            },
+            Model::Mirror => ModelDef {
+                name: "mirror",
+                fields: &["reflectance"],
+                words: |_| vec![Vec3::new(1.0, 0.0, 0.0)],
+                solid: |_| false,
+            },
+            Model::Glass => ModelDef {
+                name: "glass",
+                fields: &["ior", "transmittance"],
+                words: |m| vec![Vec3::new(2.0, m.ior, 0.0), m.transmittance],
+                solid: |_| true,
+            },
+            Model::Metal => ModelDef {
+                name: "metal",
+                fields: &["reflectance", "alpha"],
+                words: |m| vec![Vec3::new(3.0, m.alpha, 0.0)],
+                solid: |_| false,
+            },
+            Model::MetallicRoughness => ModelDef {
+                name: "metallic-roughness",
+                fields: &["reflectance", "metallic", "roughness"],
+                words: |m| {
+                    let mut words = vec![Vec3::new(4.0, m.metallic, m.roughness)];
+                    words.extend(m.specular_words());
+                    // (Materials of the default index hash as before
+                    // indices reached this model.)
+                    if m.ior != DEFAULT_IOR {
+                        words.push(Vec3::new(10.0, m.ior, 0.0));
+                    }
+                    words
+                },
+                solid: |_| false,
+            },
+            Model::Transmission => ModelDef {
+                name: "transmission",
+                fields: &[
+                    "reflectance",
+                    "metallic",
+                    "roughness",
+                    "ior",
+                    "transmission",
+                    "thin",
+                ],
+                words: |m| {
+                    let mut words = vec![
+                        Vec3::new(8.0, m.metallic, m.roughness),
+                        Vec3::new(m.ior, m.transmission, f32::from(u8::from(m.thin))),
+                    ];
+                    words.extend(m.specular_words());
+                    words
+                },
+                solid: |m| !m.thin,
+            },
+        }
     }
+}
+
+/// What the scene knows of a scattering model ([`Model::def`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ModelDef {
+    /// Its name in scene files.
+    pub name: &'static str,
+    /// The fields of the scene format's material table it reads besides
+    /// `model` and `emission` (a material of a model without
+    /// `reflectance` is white).
+    pub fields: &'static [&'static str],
+    /// What the scene's content hash takes of a material of the model:
+    /// the model and its own parameters, as words of three floats.
+    pub words: fn(&Material) -> Vec<Vec3>,
+    /// Whether a material of the model is the boundary of a solid (light
+    /// inside it may be absorbed: [`Material::absorbs`]).
+    pub solid: fn(&Material) -> bool,
 }
 
 /// The index of refraction of glass when the scene gives none (crown glass).
@@ -296,31 +387,10 @@ impl Material {
     }
 
     /// What the scene's content hash takes of the model and its own
-    /// parameters, as words of three floats. Diffuse, the first model,
-    /// hashes as nothing: hashes of scenes from before models existed stay
-    /// what they were.
+    /// parameters ([`ModelDef::words`]), then of absorption, coverage and
+    /// textures, as words of three floats.
     pub fn model_words(&self) -> Vec<Vec3> {
-        let mut words = match self.model {
-            Model::Diffuse => vec![],
-            Model::Mirror => vec![Vec3::new(1.0, 0.0, 0.0)],
-            Model::Glass => vec![Vec3::new(2.0, self.ior, 0.0), self.transmittance],
-            Model::Metal => vec![Vec3::new(3.0, self.alpha, 0.0)],
-            Model::MetallicRoughness => vec![Vec3::new(4.0, self.metallic, self.roughness)],
-            Model::Transmission => vec![
-                Vec3::new(8.0, self.metallic, self.roughness),
-                Vec3::new(self.ior, self.transmission, f32::from(u8::from(self.thin))),
-            ],
-        };
-        // (Materials of the default specular, index and no absorption
-        // hash as before those existed.)
-        let specular_model = matches!(self.model, Model::MetallicRoughness | Model::Transmission);
-        if specular_model && (self.specular != 1.0 || self.specular_colour != Vec3::ONE) {
-            words.push(Vec3::new(9.0, self.specular, 0.0));
-            words.push(self.specular_colour);
-        }
-        if self.model == Model::MetallicRoughness && self.ior != DEFAULT_IOR {
-            words.push(Vec3::new(10.0, self.ior, 0.0));
-        }
+        let mut words = (self.model.def().words)(self);
         if self.absorbs() {
             words.push(Vec3::new(11.0, self.attenuation_distance, 0.0));
             words.push(self.attenuation_colour);
@@ -363,12 +433,9 @@ impl Material {
     /// an [`attenuation_colour`](Self::attenuation_colour) other than
     /// white.
     pub fn absorbs(&self) -> bool {
-        let solid = match self.model {
-            Model::Glass => true,
-            Model::Transmission => !self.thin,
-            _ => false,
-        };
-        solid && self.attenuation_distance.is_finite() && self.attenuation_colour != Vec3::ONE
+        (self.model.def().solid)(self)
+            && self.attenuation_distance.is_finite()
+            && self.attenuation_colour != Vec3::ONE
     }
 
     /// The transmittance of a straight path of length `t` inside the
@@ -385,6 +452,17 @@ impl Material {
         let x = t / self.attenuation_distance;
         let c = self.attenuation_colour;
         Some([c.x.powf(x), c.y.powf(x), c.z.powf(x)])
+    }
+
+    /// `KHR_materials_specular`'s words for the content hash, none for
+    /// the defaults (materials of the default specular hash as before it
+    /// existed).
+    pub fn specular_words(&self) -> Vec<Vec3> {
+        if self.specular != 1.0 || self.specular_colour != Vec3::ONE {
+            vec![Vec3::new(9.0, self.specular, 0.0), self.specular_colour]
+        } else {
+            vec![]
+        }
     }
 
     /// Whether the material emits any light.

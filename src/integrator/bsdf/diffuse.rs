@@ -5,8 +5,73 @@
 //! `wo`, as [`facing`](super::facing) returns it): reflection happens on
 //! that side, and there is none on the other.
 
+use super::surface::{Bsdf, Texels, lanes3};
 use super::{BsdfSample, local_to_world, tangents};
 use crate::math::{Real, V3, sin_cos_2pi};
+use crate::scene::{Material, Model};
+use wide::f32x8;
+
+/// The diffuse model ([`Model::Diffuse`]).
+pub struct Diffuse;
+
+/// Its parameter: the BRDF `f = ρ/π`, ρ the reflectance times the colour
+/// textures.
+#[derive(Clone, Copy, Debug)]
+pub struct Params<R: Real> {
+    /// `ρ/π` per RGB channel.
+    pub f: V3<R>,
+}
+
+impl Bsdf for Diffuse {
+    const MODEL: Model = Model::Diffuse;
+    type Params<R: Real> = Params<R>;
+
+    #[inline]
+    fn params(m: &Material, at: &impl Texels) -> Params<f32> {
+        Params {
+            f: V3::from(m.reflectance * at.colour() / std::f32::consts::PI),
+        }
+    }
+
+    #[inline(always)]
+    fn gather(table: &[Params<f32>], rows: &[usize; 8]) -> Params<f32x8> {
+        Params {
+            f: lanes3(rows, |i| table[i].f),
+        }
+    }
+
+    #[inline(always)]
+    fn of_brdf<R: Real>(brdf: impl FnOnce() -> V3<R>) -> Option<Params<R>> {
+        Some(Params { f: brdf() })
+    }
+
+    #[inline(always)]
+    fn sample<R: Real>(
+        p: &Params<R>,
+        (_, n): (R::Mask, V3<R>),
+        _wo: V3<R>,
+        u: [R; 2],
+        uniform: bool,
+    ) -> BsdfSample<R> {
+        if uniform {
+            sample_uniform(n, p.f, u)
+        } else {
+            sample_cosine(n, p.f, u)
+        }
+    }
+
+    #[inline(always)]
+    fn eval<R: Real>(
+        p: &Params<R>,
+        n: V3<R>,
+        _wo: V3<R>,
+        wi: V3<R>,
+        _front: R::Mask,
+    ) -> (V3<R>, R, R) {
+        let (fcos, cos) = eval(n, p.f, wi);
+        (fcos, cos, pdf_cosine(n, wi))
+    }
+}
 
 /// The report's sampling routine: a direction uniform on the hemisphere of
 /// `n` (pdf `1/2π`), from two uniform numbers `u = [X1, X2]`, weighted for

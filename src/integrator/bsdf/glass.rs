@@ -14,8 +14,59 @@
 //! tracer (`TransportMode::Importance`) would leave the factor out. The
 //! factors cancel for a path that enters and leaves the same medium.
 
+use super::surface::{Bsdf, Texels, lanes, lanes3};
 use super::{BsdfSample, reflect};
 use crate::math::{Real, V3};
+use crate::scene::{Material, Model};
+use wide::f32x8;
+
+/// The smooth dielectric model ([`Model::Glass`]).
+pub struct Glass;
+
+/// Its parameters.
+#[derive(Clone, Copy, Debug)]
+pub struct Params<R: Real> {
+    /// The index of refraction of the medium behind the front side.
+    pub ior: R,
+    /// The transmittance tint of refraction (times the colour textures).
+    pub tint: V3<R>,
+}
+
+impl Bsdf for Glass {
+    const MODEL: Model = Model::Glass;
+    const DELTA: bool = true;
+    type Params<R: Real> = Params<R>;
+
+    #[inline]
+    fn params(m: &Material, at: &impl Texels) -> Params<f32> {
+        Params {
+            ior: m.ior,
+            tint: V3::from(m.transmittance * at.colour()),
+        }
+    }
+
+    #[inline(always)]
+    fn gather(table: &[Params<f32>], rows: &[usize; 8]) -> Params<f32x8> {
+        Params {
+            ior: lanes(rows, |i| table[i].ior),
+            tint: lanes3(rows, |i| table[i].tint),
+        }
+    }
+
+    /// [`sample`] with the facing normal turned outward (to the geometric
+    /// front), as it takes it.
+    #[inline(always)]
+    fn sample<R: Real>(
+        p: &Params<R>,
+        (front, n): (R::Mask, V3<R>),
+        wo: V3<R>,
+        u: [R; 2],
+        _uniform: bool,
+    ) -> BsdfSample<R> {
+        let outward = V3::select(front, n, -n);
+        sample(outward, wo, p.ior, p.tint, u[0])
+    }
+}
 
 /// The unpolarised Fresnel reflectance of a smooth dielectric interface,
 /// exact (the mean of the `s` and `p` reflectances), and the cosine of the

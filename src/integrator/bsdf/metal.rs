@@ -33,9 +33,69 @@
 //! the BRDF is zero unless both `wo` and `wi` are strictly above the
 //! surface.
 
+use super::surface::{Bsdf, Texels, lanes, lanes3};
 use super::{BsdfSample, local_to_world, reflect, tangents};
 use crate::math::{Real, V3, sin_cos_2pi};
+use crate::scene::{Material, Model};
 use std::f32::consts::PI;
+use wide::f32x8;
+
+/// The rough conductor model ([`Model::Metal`]).
+pub struct Metal;
+
+/// Its parameters.
+#[derive(Clone, Copy, Debug)]
+pub struct Params<R: Real> {
+    /// The GGX α.
+    pub alpha: R,
+    /// The Fresnel tint: the reflectance times the colour textures.
+    pub tint: V3<R>,
+}
+
+impl Bsdf for Metal {
+    const MODEL: Model = Model::Metal;
+    type Params<R: Real> = Params<R>;
+
+    #[inline]
+    fn params(m: &Material, at: &impl Texels) -> Params<f32> {
+        Params {
+            alpha: m.alpha,
+            tint: V3::from(m.reflectance * at.colour()),
+        }
+    }
+
+    #[inline(always)]
+    fn gather(table: &[Params<f32>], rows: &[usize; 8]) -> Params<f32x8> {
+        Params {
+            alpha: lanes(rows, |i| table[i].alpha),
+            tint: lanes3(rows, |i| table[i].tint),
+        }
+    }
+
+    #[inline(always)]
+    fn sample<R: Real>(
+        p: &Params<R>,
+        (_, n): (R::Mask, V3<R>),
+        wo: V3<R>,
+        u: [R; 2],
+        _uniform: bool,
+    ) -> BsdfSample<R> {
+        sample(n, wo, p.alpha, p.tint, u)
+    }
+
+    #[inline(always)]
+    fn eval<R: Real>(
+        p: &Params<R>,
+        n: V3<R>,
+        wo: V3<R>,
+        wi: V3<R>,
+        _front: R::Mask,
+    ) -> (V3<R>, R, R) {
+        let f = eval(n, wo, wi, p.alpha, p.tint);
+        let cos = n.dot(wi).max(R::splat(0.0));
+        (f.scale(cos), cos, pdf(n, wo, wi, p.alpha))
+    }
+}
 
 /// The smallest α the model works with; smaller values (and NaN) are
 /// raised to it. See the module documentation.

@@ -55,8 +55,92 @@
 //! `wo`); the BRDF is zero unless both `wo` and `wi` are strictly above
 //! the surface. Roughness is given as `α = roughness²`.
 
+use super::surface::{Bsdf, Texels, lanes, lanes3};
 use super::{BsdfSample, diffuse, metal};
 use crate::math::{Real, V3};
+use crate::scene::material::dielectric_f0;
+use crate::scene::{Material, Model};
+use wide::f32x8;
+
+/// The metallic-roughness model ([`Model::MetallicRoughness`]), its
+/// parameters [`Params`].
+pub struct MetallicRoughness;
+
+/// `(metalness, roughness)` of `m` where its textures read `at`: the
+/// factors times B and G of its metallic-roughness texture.
+#[inline(always)]
+pub fn metallic_roughness(m: &Material, at: &impl Texels) -> (f32, f32) {
+    let (metal, rough) =
+        (at.read(m.maps.metallic_roughness.as_ref())).map_or((1.0, 1.0), |c| (c[2], c[1]));
+    (m.metallic * metal, m.roughness * rough)
+}
+
+/// `(specular, F0 colour)` of `m` where its textures read `at`:
+/// `KHR_materials_specular`'s strength (times A of `specularTexture`) and
+/// its colour (times RGB of `specularColorTexture`) into
+/// [`dielectric_f0`] of the material's index.
+#[inline(always)]
+pub fn specular(m: &Material, at: &impl Texels) -> (f32, V3<f32>) {
+    let s = at.channel(m.maps.specular.as_ref(), 3);
+    let c = at.rgb(m.maps.specular_colour.as_ref());
+    (
+        m.specular * s,
+        V3::from(dielectric_f0(m.ior, m.specular_colour * c)),
+    )
+}
+
+impl Bsdf for MetallicRoughness {
+    const MODEL: Model = Model::MetallicRoughness;
+    type Params<R: Real> = Params<R>;
+
+    #[inline]
+    fn params(m: &Material, at: &impl Texels) -> Params<f32> {
+        let (metallic, roughness) = metallic_roughness(m, at);
+        let (specular, f0) = specular(m, at);
+        Params {
+            base: V3::from(m.reflectance * at.colour()),
+            metallic,
+            alpha: roughness * roughness,
+            f0: f0.scale(specular),
+            f90: specular,
+        }
+    }
+
+    #[inline(always)]
+    fn gather(table: &[Params<f32>], rows: &[usize; 8]) -> Params<f32x8> {
+        Params {
+            base: lanes3(rows, |i| table[i].base),
+            metallic: lanes(rows, |i| table[i].metallic),
+            alpha: lanes(rows, |i| table[i].alpha),
+            f0: lanes3(rows, |i| table[i].f0),
+            f90: lanes(rows, |i| table[i].f90),
+        }
+    }
+
+    #[inline(always)]
+    fn sample<R: Real>(
+        p: &Params<R>,
+        (_, n): (R::Mask, V3<R>),
+        wo: V3<R>,
+        u: [R; 2],
+        _uniform: bool,
+    ) -> BsdfSample<R> {
+        sample(n, wo, p, u)
+    }
+
+    #[inline(always)]
+    fn eval<R: Real>(
+        p: &Params<R>,
+        n: V3<R>,
+        wo: V3<R>,
+        wi: V3<R>,
+        _front: R::Mask,
+    ) -> (V3<R>, R, R) {
+        let f = eval(n, wo, wi, p);
+        let cos = n.dot(wi).max(R::splat(0.0));
+        (f.scale(cos), cos, pdf(n, wo, wi, p))
+    }
+}
 
 /// `F0` of the dielectric part at the default index of refraction (1.5)
 /// and specular ([`Params::new`]).

@@ -11,7 +11,10 @@
 //! visible-normal sampling), [`metallic_roughness`] (glTF's Appendix B)
 //! and [`transmission`] (glTF's `KHR_materials_transmission`: Appendix B
 //! mixed with the rough or smooth, thin or solid dielectric interface of
-//! [`dielectric`]); [`surface`] dispatches on the model.
+//! [`dielectric`]). Each is a type implementing [`surface::Bsdf`] (its
+//! parameters from a material, constant or textured, its sampling and
+//! evaluation); [`surface`] holds the seam, and the list below makes
+//! [`Surface`], the one dispatch on the model.
 //!
 //! Conventions shared by every model:
 //!
@@ -34,9 +37,18 @@ pub mod mirror;
 pub mod surface;
 pub mod transmission;
 
-pub use surface::Surface;
-
 use crate::math::{Real, V3};
+
+// The scattering models: a variant of `Model` and its type
+// (`surface::Bsdf`).
+surface::models!(
+    Diffuse: diffuse::Diffuse,
+    Mirror: mirror::Mirror,
+    Glass: glass::Glass,
+    Metal: metal::Metal,
+    MetallicRoughness: metallic_roughness::MetallicRoughness,
+    Transmission: transmission::Transmission,
+);
 
 /// A scattered direction and its weight `f · |cos θ| / pdf`, kept as its
 /// three factors so that the throughput update is `β · f · cos / pdf`,

@@ -42,8 +42,123 @@
 //! `wo`).
 
 use super::metallic_roughness as mr;
+use super::surface::{Bsdf, Texels, lanes, lanes3};
 use super::{BsdfSample, dielectric};
 use crate::math::{Real, V3};
+use crate::scene::{Material, Model};
+use wide::f32x8;
+
+/// The transmission model ([`Model::Transmission`]).
+pub struct Transmission;
+
+/// Its parameters: [`Params`] but the side, which is the hit's.
+#[derive(Clone, Copy, Debug)]
+pub struct Factors<R: Real> {
+    /// The base colour: the reflectance times the colour textures.
+    pub base: V3<R>,
+    /// The metalness.
+    pub metallic: R,
+    /// The GGX α: the roughness squared.
+    pub alpha: R,
+    /// The index of refraction.
+    pub ior: R,
+    /// The transmission factor (× texture).
+    pub transmission: R,
+    /// 1 where the surface is thin-walled, 0 where it bounds a solid.
+    pub thin: R,
+    /// `KHR_materials_specular`'s strength.
+    pub specular: R,
+    /// The dielectric `F0` colour before the strength.
+    pub f0: V3<R>,
+}
+
+impl<R: Real> Factors<R> {
+    /// The parameters, `wo` on the geometric front where `front`.
+    #[inline(always)]
+    fn at(&self, front: R::Mask) -> Params<R> {
+        Params {
+            base: self.base,
+            metallic: self.metallic,
+            alpha: self.alpha,
+            ior: self.ior,
+            transmission: self.transmission,
+            thin: R::splat(0.5).lt(self.thin),
+            front,
+            f0: self.f0,
+            specular: self.specular,
+        }
+    }
+}
+
+impl Bsdf for Transmission {
+    const MODEL: Model = Model::Transmission;
+    type Params<R: Real> = Factors<R>;
+
+    #[inline]
+    fn params(m: &Material, at: &impl Texels) -> Factors<f32> {
+        let (metallic, roughness) = mr::metallic_roughness(m, at);
+        let (specular, f0) = mr::specular(m, at);
+        Factors {
+            base: V3::from(m.reflectance * at.colour()),
+            metallic,
+            alpha: roughness * roughness,
+            ior: m.ior,
+            transmission: m.transmission * at.channel(m.maps.transmission.as_ref(), 0),
+            thin: f32::from(u8::from(m.thin)),
+            specular,
+            f0,
+        }
+    }
+
+    #[inline(always)]
+    fn gather(table: &[Factors<f32>], rows: &[usize; 8]) -> Factors<f32x8> {
+        Factors {
+            base: lanes3(rows, |i| table[i].base),
+            metallic: lanes(rows, |i| table[i].metallic),
+            alpha: lanes(rows, |i| table[i].alpha),
+            ior: lanes(rows, |i| table[i].ior),
+            transmission: lanes(rows, |i| table[i].transmission),
+            thin: lanes(rows, |i| table[i].thin),
+            specular: lanes(rows, |i| table[i].specular),
+            f0: lanes3(rows, |i| table[i].f0),
+        }
+    }
+
+    #[inline(always)]
+    fn sample<R: Real>(
+        p: &Factors<R>,
+        (front, n): (R::Mask, V3<R>),
+        wo: V3<R>,
+        u: [R; 2],
+        _uniform: bool,
+    ) -> BsdfSample<R> {
+        sample(n, wo, &p.at(front), u)
+    }
+
+    /// Light sampling reaches the side of `wo` only.
+    #[inline(always)]
+    fn eval<R: Real>(
+        p: &Factors<R>,
+        n: V3<R>,
+        wo: V3<R>,
+        wi: V3<R>,
+        front: R::Mask,
+    ) -> (V3<R>, R, R) {
+        let p = p.at(front);
+        let f = eval(n, wo, wi, &p);
+        let cos = n.dot(wi).max(R::splat(0.0));
+        (f.scale(cos), cos, pdf(n, wo, wi, &p))
+    }
+
+    /// 0 after a delta sample (a smooth interface) and after a
+    /// transmission (light sampling connects only on the side of `ng`).
+    #[inline(always)]
+    fn mis_pdf<R: Real>(_p: &Factors<R>, s: &BsdfSample<R>, ng: V3<R>) -> R {
+        let zero = R::splat(0.0);
+        let through = s.wi.dot(ng).le(zero);
+        R::select(s.delta | through, zero, s.pdf)
+    }
+}
 
 /// The largest `f32` below 1.
 const BELOW_ONE: f32 = 1.0 - f32::EPSILON / 2.0;

@@ -132,11 +132,10 @@ mod tests {
                 let col = |c: &[Vec<f32>; 3]| V3::new(c[0][i], c[1][i], c[2][i]);
                 let normal = V3::from(scene.triangles[tri].normal);
                 let material = &scene.materials[scene.triangles[tri].material as usize];
-                let brdf = V3::from(material.reflectance / std::f32::consts::PI);
                 let mut path = before.sampler[i];
                 let u = sampler.next_2d(&mut path);
                 let (o, d) = (col(&before.o), col(&before.d));
-                let s = Surface::diffuse(brdf).sample(normal, d, u, true);
+                let s = Surface::of(material).sample(normal, d, u, true);
                 let p = hit_point(o, d, before.t[i]);
                 let err = error_bound(o, p, scene.primitive_scale(tri));
                 let want = [

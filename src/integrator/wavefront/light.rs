@@ -5,6 +5,7 @@
 use super::Ctx;
 use super::queue::{PathQueue, load8};
 use super::shadow::ShadowQueue;
+use crate::integrator::bsdf::is_delta;
 use crate::integrator::lights::LightPoint;
 use crate::integrator::nee::{connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
@@ -26,7 +27,7 @@ pub fn sample_lights<S: Sampler>(
 ) {
     shadows.clear();
     for (model, rows) in bins {
-        if model.is_delta() {
+        if is_delta(*model) {
             for path in &mut queue.sampler[rows.clone()] {
                 ctx.est.skip_light_numbers(ctx.sampler, path);
             }

@@ -3,6 +3,7 @@
 use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
 use crate::integrator::aov::{Vertex, value};
+use crate::integrator::bsdf::is_delta;
 use crate::integrator::nee::{emission_weight, escaped};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
@@ -105,7 +106,7 @@ pub fn record_aovs<P>(queue: &mut PathQueue<P>, tables: &Tables, depth: u32, for
         if hit == NO_HIT {
             continue;
         }
-        let first = aov.surface && aov.pending[i] != 0 && !tables.model_of(hit).is_delta();
+        let first = aov.surface && aov.pending[i] != 0 && !is_delta(tables.model_of(hit));
         if depth != 0 && !first {
             continue;
         }
