@@ -2070,3 +2070,198 @@ proptest! {
         load_asset_case(&path, budget, &edits)?;
     }
 }
+
+// --- Compressed glTF (KHR_draco_mesh_compression) ---
+
+/// How a Draco-compressed GLB is made hostile.
+#[derive(Clone, Debug)]
+enum DracoEdit {
+    /// Field `f` of Draco primitive `k`'s extension object set to `v`.
+    Field(usize, &'static str, serde_json::Value),
+    /// Draco primitive `k`'s attribute `name` given unique id `v`.
+    Id(usize, &'static str, serde_json::Value),
+    /// Field `f` of the `a`-th accessor Draco primitive `k` fills
+    /// (indices, then its attributes) set to `v`.
+    Accessor(usize, usize, &'static str, serde_json::Value),
+    /// Draco primitive `k`'s mode set to `m`.
+    Mode(usize, u8),
+    Flip(usize, u8),
+    Truncate(usize),
+}
+
+fn draco_edit() -> impl Strategy<Value = DracoEdit> {
+    use serde_json::json;
+    let numbers = vec![
+        json!(0),
+        json!(1),
+        json!(2),
+        json!(3),
+        json!(7),
+        json!(99),
+        json!(1u64 << 20),
+        json!(1u64 << 31),
+        json!(1u64 << 40),
+        json!(u64::MAX),
+        json!(-1),
+        json!(1.5),
+        json!(null),
+        json!("POSITION"),
+    ];
+    let accessor_values = vec![
+        json!(0),
+        json!(1),
+        json!(2),
+        json!(4),
+        json!(1u64 << 24),
+        json!(1u64 << 31),
+        json!(1u64 << 40),
+        json!(5120),
+        json!(5121),
+        json!(5123),
+        json!(5125),
+        json!(5126),
+        json!("SCALAR"),
+        json!("VEC2"),
+        json!("VEC4"),
+        json!("MAT4"),
+        json!(true),
+    ];
+    prop_oneof![
+        2 => (any::<usize>(), select(vec!["bufferView", "attributes"]), select(numbers.clone()))
+            .prop_map(|(k, f, v)| DracoEdit::Field(k, f, v)),
+        2 => (any::<usize>(), select(vec!["POSITION", "TEXCOORD_0", "COLOR_0", "NORMAL"]), select(numbers))
+            .prop_map(|(k, f, v)| DracoEdit::Id(k, f, v)),
+        3 => (any::<usize>(), any::<usize>(), select(vec!["count", "componentType", "type", "normalized"]), select(accessor_values))
+            .prop_map(|(k, a, f, v)| DracoEdit::Accessor(k, a, f, v)),
+        1 => (any::<usize>(), 0u8..7).prop_map(|(k, m)| DracoEdit::Mode(k, m)),
+        3 => (any::<usize>(), 0u8..8).prop_map(|(a, b)| DracoEdit::Flip(a, b)),
+        1 => any::<usize>().prop_map(DracoEdit::Truncate),
+    ]
+}
+
+/// `edits` applied to gltf-transform's Draco output of the textured GLB
+/// (`tests/data/draco/textured-draco.glb`): the file's bytes.
+fn hostile_draco_glb(edits: &[DracoEdit]) -> Vec<u8> {
+    let b = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/draco/textured-draco.glb"),
+    )
+    .unwrap();
+    let (mut json, mut bin) = split_glb(&b);
+    const EXT: &str = "KHR_draco_mesh_compression";
+    let n = json["meshes"].as_array().unwrap().len();
+    let mut truncate = None;
+    for e in edits {
+        match e {
+            DracoEdit::Field(k, f, v) => {
+                json["meshes"][k % n]["primitives"][0]["extensions"][EXT][*f] = v.clone();
+            }
+            DracoEdit::Id(k, name, v) => {
+                let ext = &mut json["meshes"][k % n]["primitives"][0]["extensions"][EXT];
+                if ext["attributes"].is_object() {
+                    ext["attributes"][*name] = v.clone();
+                }
+            }
+            DracoEdit::Accessor(k, a, f, v) => {
+                let p = &json["meshes"][k % n]["primitives"][0];
+                let accessors: Vec<u64> = (p["indices"].as_u64().into_iter())
+                    .chain(
+                        p["attributes"]
+                            .as_object()
+                            .unwrap()
+                            .values()
+                            .filter_map(|x| x.as_u64()),
+                    )
+                    .collect();
+                let a = accessors[a % accessors.len()] as usize;
+                json["accessors"][a][*f] = v.clone();
+            }
+            DracoEdit::Mode(k, m) => json["meshes"][k % n]["primitives"][0]["mode"] = (*m).into(),
+            DracoEdit::Flip(a, bit) => {
+                let n = bin.len();
+                bin[a % n] ^= 1 << bit;
+            }
+            DracoEdit::Truncate(a) => truncate = Some(a % bin.len()),
+        }
+    }
+    if let Some(t) = truncate {
+        bin.truncate(t);
+    }
+    glb(&json, &bin)
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// A Draco-compressed GLB (gltf-transform's, five primitives) with
+    /// its extension objects and the accessors they fill mutated — stream
+    /// views out of range or of other primitives, unique ids missing or
+    /// huge, counts up to 2⁶⁴, other component types and types, modes —
+    /// and its bytes flipped or cut short: each loads and renders, or is
+    /// refused naming the file; no panic, no allocation beyond the
+    /// decoding budget (64 MiB plus 64 times the file's buffers).
+    #[test]
+    fn hostile_draco_gltf(edits in proptest::collection::vec(draco_edit(), 1..4)) {
+        let dir = TempDir::new("fuzz-draco");
+        let bytes = hostile_draco_glb(&edits);
+        let path = dir.join("d.glb");
+        std::fs::write(&path, &bytes).unwrap();
+        let budget = wavetrace::scene::gltf::DECODE_ALLOWANCE as usize
+            + wavetrace::scene::gltf::DECODE_RATIO as usize * bytes.len();
+        load_asset_case(&path, budget, &edits)?;
+    }
+}
+
+/// A 40-byte Draco stream declaring a billion triangles and points: with
+/// accessors that declare what the file holds, the decoder's limits (the
+/// accessors' counts) refuse it; with accessors declaring a billion too,
+/// the decoding budget refuses it before the decode. Neither allocates
+/// more than a megabyte at once.
+#[test]
+fn a_draco_stream_declaring_a_billion_triangles_is_refused_before_allocating() {
+    use serde_json::json;
+    // "DRACO", version 2.2, a triangular mesh, sequential connectivity,
+    // no flags; then 10^9 faces and 10^9 points (varints), raw indices.
+    let mut stream = b"DRACO\x02\x02\x01\x00\x00\x00".to_vec();
+    for _ in 0..2 {
+        stream.extend([0x80, 0x94, 0xeb, 0xdc, 0x03]);
+    }
+    stream.push(1);
+    stream.resize(40, 0);
+    for (count, why) in [(3u64, "does not decode"), (1_000_000_000, "decoded data")] {
+        let gltf = json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["KHR_draco_mesh_compression"],
+            "extensionsRequired": ["KHR_draco_mesh_compression"],
+            "buffers": [{"byteLength": 40}],
+            "bufferViews": [{"buffer": 0, "byteLength": 40}],
+            "accessors": [
+                {"componentType": 5125, "count": count * 3, "type": "SCALAR"},
+                {"componentType": 5126, "count": count, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 1]},
+            ],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0,
+                "extensions": {"KHR_draco_mesh_compression":
+                    {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
+            "nodes": [{"mesh": 0}],
+            "scenes": [{"nodes": [0]}],
+        });
+        let dir = TempDir::new("draco-billion");
+        let path = dir.join("b.glb");
+        std::fs::write(&path, glb(&gltf, &stream)).unwrap();
+        let start = Instant::now();
+        let (r, largest) = largest_allocation(|| wavetrace::scene::gltf::load(&path));
+        let Err(e) = r else { panic!("not refused") };
+        let shown = e.to_string();
+        eprintln!(
+            "{shown} ({largest} bytes at most at once, {:?})",
+            start.elapsed()
+        );
+        assert!(largest < 1 << 20, "allocated {largest} bytes at once");
+        assert!(start.elapsed() < Duration::from_secs(1));
+        assert!(
+            shown.contains("meshes[0].primitives[0].extensions.KHR_draco_mesh_compression")
+                && shown.contains(why),
+            "{shown}"
+        );
+    }
+}

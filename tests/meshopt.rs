@@ -648,3 +648,125 @@ fn flipped_and_truncated_compressed_bytes_never_panic() {
     eprintln!("{loaded} loaded, {refused} refused");
     assert!(refused > 0 && loaded > 0);
 }
+
+/// gltfpack 1.3's `-cc -ce khr` output of `scenes/textured.glb`
+/// (`tests/data/meshopt/textured-meshopt-khr.glb`): `KHR_meshopt_compression`,
+/// the ratified extension, with version 1 attribute bitstreams (header
+/// 0xa1) and the COLOR filter on the wedge's 8-bit colours. The same
+/// triangles as the source within the quantization step, the colours
+/// within two 8-bit steps (YCoCg rounds: 0.1 decodes to 27/255), the
+/// engines alike, the image within 0.5 % of the source's. The rules: COLOR is refused under the
+/// EXT extension, and with a stride other than 4 or 8; a view may not
+/// carry both extensions.
+#[test]
+fn khr_meshopt_compression_reads_version_1_streams_and_the_color_filter() {
+    const KHR: &str = "KHR_meshopt_compression";
+    let source = data("scenes/textured.glb");
+    let want = read(&source);
+    let bytes = data("tests/data/meshopt/textured-meshopt-khr.glb");
+    let (json, bin) = split_glb(&bytes);
+    assert_eq!(json["extensionsRequired"][1], json!(KHR));
+    let views = json["bufferViews"].as_array().unwrap();
+    let colour_view = (views.iter())
+        .position(|v| v["extensions"][KHR]["filter"] == json!("COLOR"))
+        .expect("a COLOR view");
+    for v in views
+        .iter()
+        .filter(|v| v["extensions"][KHR]["mode"] == "ATTRIBUTES")
+    {
+        let at = v["extensions"][KHR]["byteOffset"].as_u64().unwrap() as usize;
+        assert_eq!(bin[at], 0xa1, "a version 1 stream");
+    }
+    let got = read(&bytes);
+    let d = triangle_distance(&want, &got);
+    let step = 0.5 * 5.0 / 16383.0;
+    eprintln!("KHR: triangles within {d} of the source's (step {step})");
+    assert!(d <= step * 1.01, "triangles {d} off");
+    // Each source colour against the nearest decoded one (the vertices
+    // are renumbered).
+    let colours = |a: &Asset| {
+        let m = a.meshes.iter().find(|m| !m.colours.is_empty()).unwrap();
+        m.colours.clone()
+    };
+    let (cw, cg) = (colours(&want), colours(&got));
+    assert_eq!(cw.len(), cg.len());
+    let dist = |x: &[f32; 4], y: &[f32; 4]| (0..4).map(|k| (x[k] - y[k]).abs()).fold(0.0, f32::max);
+    let dc = (cw.iter())
+        .map(|x| cg.iter().map(|y| dist(x, y)).fold(f32::INFINITY, f32::min))
+        .fold(0.0f32, f32::max);
+    eprintln!("KHR: colours within {dc} of the source's");
+    assert!(dc <= 2.0 / 255.0, "colours {dc} off: {cg:?} for {cw:?}");
+    let dir = TempDir::new("meshopt-khr");
+    let original = scene_of(&dir, "source.glb", &source);
+    let reference = render(&original, Engine::Reference, 16).to_rgb();
+    let scene = scene_of(&dir, "khr.glb", &bytes);
+    let (a, b) = (
+        render(&scene, Engine::Reference, 16).to_rgb(),
+        render(&scene, Engine::Wavefront, 16).to_rgb(),
+    );
+    for (i, (pa, pb)) in a.iter().zip(&b).enumerate() {
+        for c in 0..3 {
+            let (x, y) = (pa[c], pb[c]);
+            assert!(
+                (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
+                "pixel {i} channel {c}: reference {x}, wavefront {y}"
+            );
+        }
+    }
+    let total = |img: &[[f32; 3]]| img.iter().flatten().map(|&x| x as f64).sum::<f64>();
+    let diff: f64 = (a.iter().zip(&reference))
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs() as f64))
+        .sum::<f64>()
+        / total(&reference);
+    eprintln!("KHR: mean |image - source's image| / mean = {diff:.4}");
+    assert!(diff < 0.005, "the image is {diff} off the source's");
+    // The rules the KHR extension adds.
+    let at = format!("bufferViews[{colour_view}].extensions");
+    let refused = |j: &Value, path: &str, why: &str| {
+        let e = gltf::read(&glb(j, &bin), "test.glb", None)
+            .err()
+            .unwrap_or_else(|| panic!("{path}: not refused"))
+            .to_string();
+        assert!(e.starts_with(&format!("test.glb: {path}")), "{path}: {e}");
+        assert!(e.contains(why), "{why:?} in {e}");
+    };
+    let mut as_ext = json.clone();
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        for e in as_ext[list].as_array_mut().unwrap() {
+            if e == KHR {
+                *e = json!(EXT);
+            }
+        }
+    }
+    for b in as_ext["buffers"].as_array_mut().unwrap() {
+        if let Some(x) = b["extensions"].as_object_mut().and_then(|x| x.remove(KHR)) {
+            b["extensions"][EXT] = x;
+        }
+    }
+    for v in as_ext["bufferViews"].as_array_mut().unwrap() {
+        if let Some(x) = v["extensions"].as_object_mut().and_then(|x| x.remove(KHR)) {
+            v["extensions"][EXT] = x;
+        }
+    }
+    refused(
+        &as_ext,
+        &format!("{at}.{EXT}.filter"),
+        "COLOR is a filter of KHR",
+    );
+    let mut wide = json.clone();
+    wide["bufferViews"][colour_view]["extensions"][KHR]["byteStride"] = json!(12);
+    wide["bufferViews"][colour_view]["extensions"][KHR]["count"] = json!(1);
+    refused(
+        &wide,
+        &format!("{at}.{KHR}.byteStride"),
+        "12 for the Color filter",
+    );
+    let mut both = json.clone();
+    let x = both["bufferViews"][colour_view]["extensions"][KHR].clone();
+    both["bufferViews"][colour_view]["extensions"][EXT] = x;
+    refused(
+        &both,
+        &at,
+        "both KHR_meshopt_compression and EXT_meshopt_compression",
+    );
+}

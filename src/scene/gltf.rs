@@ -20,9 +20,9 @@
 //!   normal texture needs them and the file has none), `COLOR_0`; float
 //!   and normalised integer components, and `KHR_mesh_quantization`'s
 //!   integers that are not normalised (positions and texture coordinates);
-//! - `EXT_meshopt_compression`: every compressed buffer view is decoded
-//!   once, before any accessor is read ([`super::meshopt`]); fallback
-//!   buffers are not read;
+//! - `EXT_meshopt_compression` and `KHR_meshopt_compression`: every
+//!   compressed buffer view is decoded once, before any accessor is read
+//!   ([`super::meshopt`]); fallback buffers are not read;
 //! - metallic-roughness materials with their textures and
 //!   `KHR_texture_transform`, `KHR_materials_emissive_strength`,
 //!   `KHR_materials_ior`, `KHR_materials_specular`,
@@ -35,12 +35,14 @@
 //!   ([`LUMENS_PER_WATT`]) into W/sr and W/m²;
 //! - images in PNG or JPEG, in a buffer view, a data URI or a file beside
 //!   the asset;
-//! - `KHR_draco_mesh_compression` is refused where required, with the
-//!   command that decompresses the file;
-//!   any other required extension is refused by name, any other used one
+//! - `KHR_draco_mesh_compression`: each compressed primitive's stream is
+//!   decoded once, when the primitive is read, into the bytes its
+//!   accessors would have held ([`super::draco`]);
+//! - any other required extension is refused by name, any other used one
 //!   ignored with a warning.
 
 use super::asset::{AlphaMode, Asset, AssetCamera, AssetError, AssetMesh, Instance, PbrMaterial};
+use super::draco;
 use super::meshopt::{self, Compressed};
 use super::punctual::{LUMENS_PER_WATT, LightShape, PunctualLight};
 use super::texture::{ColourSpace, Filter, Sampler, Texture, TextureRef, UvTransform, Wrap};
@@ -63,6 +65,8 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
     "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+    "KHR_draco_mesh_compression",
 ];
 
 /// The most elements an accessor without a buffer view (all zeros, then
@@ -130,7 +134,7 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
     let mut root = document.into_json();
     root.extensions_required
         .retain(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()));
-    let document = gltf::Document::from_json(root).map_err(|e| invalid(&e))?;
+    let document = validated(root).map_err(|e| invalid(&e))?;
     let gltf = gltf::Gltf { document, blob };
     let mut r = Reader {
         file,
@@ -143,6 +147,7 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
         decoded: Default::default(),
         views: Vec::new(),
         placeholders: Vec::new(),
+        draco: HashMap::new(),
     };
     r.warn_unread_extensions();
     r.buffers = r.load_buffers(gltf.blob.as_deref())?;
@@ -153,25 +158,39 @@ pub fn read(bytes: &[u8], file: &str, dir: Option<&Path>) -> Result<Asset, Asset
     Ok(r.asset)
 }
 
-/// Refuses a file that requires an extension wavetrace does not read:
-/// compressed meshes with the command that decompresses them, others by
+/// The `gltf` crate's validation of the JSON, less one rule that
+/// `KHR_draco_mesh_compression` breaks by design: the accessors a Draco
+/// primitive fills have no buffer view (its stream is their data).
+fn validated(root: gltf::json::Root) -> Result<gltf::Document, gltf::Error> {
+    use gltf::json::validation::{Error, Validate};
+    let draco: std::collections::HashSet<String> = (root.meshes.iter())
+        .flat_map(|m| &m.primitives)
+        .filter(|p| {
+            (p.extensions.as_ref())
+                .is_some_and(|e| e.others.contains_key("KHR_draco_mesh_compression"))
+        })
+        .flat_map(|p| p.indices.iter().chain(p.attributes.values()))
+        .map(|i| format!("accessors[{}].bufferView", i.value()))
+        .collect();
+    let mut errors = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !(matches!(error, Error::Missing) && draco.contains(path.as_str())) {
+            errors.push((path, error));
+        }
+    });
+    if errors.is_empty() {
+        Ok(gltf::Document::from_json_without_validation(root))
+    } else {
+        Err(gltf::Error::Validation(errors))
+    }
+}
+
+/// Refuses a file that requires an extension wavetrace does not read, by
 /// name.
 fn check_required_extensions(doc: &gltf::Document, file: &str) -> Result<(), AssetError> {
     for ext in doc.extensions_required() {
         match ext {
-            "KHR_draco_mesh_compression" => {
-                return Err(AssetError::new(
-                    file,
-                    "extensionsRequired",
-                    format!(
-                        "the meshes are compressed with {ext}, which wavetrace does not \
-                         decode yet; decompress the file first: \
-                         `npx @gltf-transform/cli copy in.glb out.glb` (or recompress it \
-                         with `npx @gltf-transform/cli meshopt in.glb out.glb`: \
-                         EXT_meshopt_compression is read)"
-                    ),
-                ));
-            }
             e if SUPPORTED_EXTENSIONS.contains(&e) => {}
             e => {
                 return Err(AssetError::new(
@@ -198,12 +217,16 @@ struct Reader<'a> {
     /// The bytes of the accessors (and compressed views) decoded so far.
     decoded: std::cell::Cell<u64>,
     /// Each buffer view's decoded bytes, where it is compressed
-    /// (`EXT_meshopt_compression`).
+    /// (`EXT_meshopt_compression`, `KHR_meshopt_compression`).
     views: Vec<Option<meshopt::Decoded>>,
-    /// Whether each buffer is a placeholder (an `EXT_meshopt_compression`
+    /// Whether each buffer is a placeholder (a meshopt compression
     /// fallback, or a buffer without data that only compressed views
     /// use): not read, and empty in `buffers`.
     placeholders: Vec<bool>,
+    /// The accessors the primitive being read fills from its Draco stream
+    /// (`KHR_draco_mesh_compression`): their bytes, by accessor index,
+    /// read in place of their (absent) buffer views.
+    draco: HashMap<usize, Vec<u8>>,
 }
 
 impl Reader<'_> {
@@ -250,12 +273,12 @@ impl Reader<'_> {
     /// Whether buffer `b` is a placeholder for compressed views: marked
     /// as a fallback, or without a URI where the GLB binary chunk cannot
     /// be its data (in a `.gltf`, or past buffer 0) in a file that uses
-    /// `EXT_meshopt_compression`.
+    /// `EXT_meshopt_compression` or `KHR_meshopt_compression`.
     fn is_placeholder(&self, b: &gltf::Buffer, blob: bool) -> bool {
         let uses = self
             .doc
             .extensions_used()
-            .any(|e| e == "EXT_meshopt_compression");
+            .any(|e| meshopt::EXTENSIONS.contains(&e));
         let no_data = matches!(b.source(), gltf::buffer::Source::Bin) && (!blob || b.index() > 0);
         uses && (b.extensions().is_some_and(meshopt::is_fallback) || no_data)
     }
@@ -289,14 +312,23 @@ impl Reader<'_> {
         Ok(out)
     }
 
-    /// Every `EXT_meshopt_compression` buffer view decoded (`None` for
+    /// Every meshopt-compressed buffer view decoded (`None` for
     /// the others), once, before any accessor reads them.
     fn decode_compressed_views(&self) -> Result<Vec<Option<meshopt::Decoded>>, AssetError> {
         let mut out = Vec::new();
         for view in self.doc.views() {
-            out.push(match view.extension_value("EXT_meshopt_compression") {
-                Some(value) => Some(self.decode_view(&view, value)?),
-                None => None,
+            let mut named = (meshopt::EXTENSIONS.iter())
+                .filter_map(|&name| Some((name, view.extension_value(name)?)));
+            out.push(match (named.next(), named.next()) {
+                (Some(_), Some(_)) => {
+                    return Err(self.err(
+                        format!("bufferViews[{}].extensions", view.index()),
+                        "both KHR_meshopt_compression and EXT_meshopt_compression \
+                         (the KHR extension must not be used with the EXT one)",
+                    ));
+                }
+                (Some((name, value)), None) => Some(self.decode_view(&view, name, value)?),
+                _ => None,
             });
         }
         Ok(out)
@@ -309,13 +341,17 @@ impl Reader<'_> {
     fn decode_view(
         &self,
         view: &gltf::buffer::View,
+        name: &str,
         value: &serde_json::Value,
     ) -> Result<meshopt::Decoded, AssetError> {
-        let at = format!(
-            "bufferViews[{}].extensions.EXT_meshopt_compression",
-            view.index()
-        );
+        let at = format!("bufferViews[{}].extensions.{name}", view.index());
         let c = Compressed::parse(value).map_err(|e| self.err(&at, e))?;
+        if c.filter == meshopt::Filter::Color && name == "EXT_meshopt_compression" {
+            return Err(self.err(
+                format!("{at}.filter"),
+                "COLOR is a filter of KHR_meshopt_compression, not of EXT_meshopt_compression",
+            ));
+        }
         c.check()
             .map_err(|(field, m)| self.err(format!("{at}.{field}"), m))?;
         let len = c
@@ -405,7 +441,7 @@ impl Reader<'_> {
             return Err(self.err(
                 format!("bufferViews[{}]", view.index()),
                 format!(
-                    "its buffer {b} is an EXT_meshopt_compression fallback without data, \
+                    "its buffer {b} is a meshopt compression fallback without data, \
                      and the view is not compressed (read for {at})"
                 ),
             ));
@@ -552,9 +588,17 @@ impl Reader<'_> {
         let buffer_bytes: u64 = self.buffers.iter().map(|b| b.len() as u64).sum();
         // The data checked first (it must fit its view, or, without one,
         // be no more than the buffers' bytes), then the decoding budget.
-        let data = match acc.view() {
-            Some(view) => Some(self.elements(&view, acc.offset(), count, size, at)?),
-            None => {
+        let data = match (self.draco.get(&acc.index()), acc.view()) {
+            (Some(bytes), _) => Some(Elements {
+                bytes: bytes.get(..count.saturating_mul(size)).ok_or_else(|| {
+                    self.err(at, format!("{count} elements from a shorter Draco stream"))
+                })?,
+                stride: size,
+                size,
+                count,
+            }),
+            (None, Some(view)) => Some(self.elements(&view, acc.offset(), count, size, at)?),
+            (None, None) => {
                 let most = MAX_ZERO_ELEMENTS.min(MIN_ZERO_ELEMENTS.max(buffer_bytes as usize));
                 if count > most {
                     return Err(self.err(
@@ -1196,10 +1240,164 @@ impl Reader<'_> {
         prim: &gltf::Primitive,
     ) -> Result<AssetMesh, AssetError> {
         let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+        self.draco = self.decode_draco(prim, &at)?;
+        let out = self.read_primitive_data(mesh, prim, &at);
+        self.draco.clear();
+        out
+    }
+
+    /// A `KHR_draco_mesh_compression` primitive's stream decoded into the
+    /// bytes of each accessor it fills, by accessor index (none for a
+    /// primitive without the extension). The accessors' counts bound the
+    /// decode and are charged to the decoding budget before it; the decoded
+    /// counts, components and component types must then be theirs.
+    fn decode_draco(
+        &self,
+        prim: &gltf::Primitive,
+        prim_at: &str,
+    ) -> Result<HashMap<usize, Vec<u8>>, AssetError> {
+        let Some(value) = prim.extension_value("KHR_draco_mesh_compression") else {
+            return Ok(HashMap::new());
+        };
+        let at = format!("{prim_at}.extensions.KHR_draco_mesh_compression");
+        let c = draco::Compressed::parse(value).map_err(|e| self.err(&at, e))?;
+        let (indices, attrs) = self.draco_accessors(prim, prim_at, &at, &c)?;
+        let ix_at = format!("{prim_at}.indices");
+        let ity = indices.data_type();
+        let points = attrs.iter().map(|a| a.2.count() as u64).max().unwrap_or(0);
+        let attribute_bytes = (attrs.iter())
+            .map(|a| (a.2.count() as u64).saturating_mul(a.2.size() as u64))
+            .fold(0, u64::saturating_add);
+        let triangles = indices.count() as u64 / 3;
+        let index_bytes = (indices.count() as u64).saturating_mul(ity.size() as u64);
+        self.charge(
+            attribute_bytes.saturating_add(index_bytes),
+            &format!("a Draco stream of {points} points and {triangles} triangles"),
+            &at,
+        )?;
+        let view = (self.doc.views().nth(c.buffer_view)).ok_or_else(|| {
+            self.err(
+                format!("{at}.bufferView"),
+                format!(
+                    "buffer view {} of {}",
+                    c.buffer_view,
+                    self.doc.views().len()
+                ),
+            )
+        })?;
+        let stream = self.view_bytes(&view, &format!("{at}.bufferView"))?;
+        let bounds = draco::Bounds {
+            points,
+            triangles,
+            attribute_bytes,
+        };
+        let mesh = draco::decode(stream, bounds).map_err(|e| self.err(&at, e))?;
+        if mesh.num_faces().saturating_mul(3) != indices.count() {
+            return Err(self.err(
+                &ix_at,
+                format!(
+                    "the accessor declares {} indices, the Draco stream decodes {} triangles",
+                    indices.count(),
+                    mesh.num_faces()
+                ),
+            ));
+        }
+        let mut out = HashMap::new();
+        let ix = draco::index_bytes(&mesh, ity).map_err(|e| self.err(&ix_at, e))?;
+        out.insert(indices.index(), ix);
+        for (at, id, acc) in attrs {
+            if acc.count() != mesh.num_points() {
+                return Err(self.err(
+                    &at,
+                    format!(
+                        "accessors[{}] declares {} elements, the Draco stream decodes {} points",
+                        acc.index(),
+                        acc.count(),
+                        mesh.num_points()
+                    ),
+                ));
+            }
+            let m = acc.dimensions().multiplicity();
+            let bytes =
+                draco::attribute_bytes(&mesh, id, m, acc.data_type()).map_err(|(field, e)| {
+                    match field {
+                        "" => self.err(&at, e),
+                        f => self.err(&at, format!("accessors[{}].{f}: {e}", acc.index())),
+                    }
+                })?;
+            out.insert(acc.index(), bytes);
+        }
+        Ok(out)
+    }
+
+    /// A Draco primitive's checks before its stream is decoded (its mode,
+    /// its indices' type, its extension's attributes among its own): its
+    /// indices' accessor and, for each attribute the stream holds, its
+    /// JSON path, Draco unique id and accessor.
+    #[allow(clippy::type_complexity)]
+    fn draco_accessors<'d>(
+        &self,
+        prim: &gltf::Primitive<'d>,
+        prim_at: &str,
+        at: &str,
+        c: &draco::Compressed,
+    ) -> Result<(gltf::Accessor<'d>, Vec<(String, u32, gltf::Accessor<'d>)>), AssetError> {
+        if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip) {
+            return Err(self.err(
+                format!("{prim_at}.mode"),
+                format!(
+                    "{:?}: a Draco primitive is TRIANGLES or TRIANGLE_STRIP",
+                    prim.mode()
+                ),
+            ));
+        }
+        let ix_at = format!("{prim_at}.indices");
+        let indices = prim.indices().ok_or_else(|| {
+            self.err(
+                &ix_at,
+                "none: a Draco primitive's indices say how many triangles its stream holds",
+            )
+        })?;
+        let ity = indices.data_type();
+        if indices.dimensions() != Dimensions::Scalar
+            || !matches!(ity, DataType::U8 | DataType::U16 | DataType::U32)
+        {
+            return Err(self.err(
+                &ix_at,
+                format!(
+                    "{:?} of {ity:?} (indices are scalars of u8, u16 or u32)",
+                    indices.dimensions()
+                ),
+            ));
+        }
+        let mut attrs = Vec::new();
+        for (name, &id) in &c.attributes {
+            let acc = (prim.attributes())
+                .find(|(s, _)| s.to_string() == *name)
+                .map(|(_, a)| a)
+                .ok_or_else(|| {
+                    self.err(
+                        format!("{at}.attributes.{name}"),
+                        "not among the primitive's attributes",
+                    )
+                })?;
+            attrs.push((format!("{at}.attributes.{name}"), id, acc));
+        }
+        Ok((indices, attrs))
+    }
+
+    /// A primitive's meshes and attributes (decoded from its Draco stream
+    /// where it has one: [`Reader::decode_draco`] has filled `draco`).
+    fn read_primitive_data(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+        at: &str,
+    ) -> Result<AssetMesh, AssetError> {
         let attr = |name: &str| format!("{at}.attributes.{name}");
         let pos_acc = prim
             .get(&gltf::Semantic::Positions)
-            .ok_or_else(|| self.err(&at, "a primitive without POSITION"))?;
+            .ok_or_else(|| self.err(at, "a primitive without POSITION"))?;
         let positions: Vec<Vec3> = self
             .read_floats::<3>(
                 &pos_acc,
@@ -1228,7 +1426,7 @@ impl Reader<'_> {
             material: prim.material().index().map(|i| i as u32),
             ..AssetMesh::default()
         };
-        self.read_attributes(prim, &at, &mut out)?;
+        self.read_attributes(prim, at, &mut out)?;
         let indices = match prim.indices() {
             Some(a) => {
                 let v = self.read_indices(&a, &format!("{at}.indices"))?;

@@ -1,5 +1,11 @@
-//! `EXT_meshopt_compression`: a glTF buffer view whose bytes are stored
+//! `EXT_meshopt_compression` and its ratified successor
+//! `KHR_meshopt_compression`: a glTF buffer view whose bytes are stored
 //! compressed (in another buffer, at another range) and decoded at load.
+//! The two have the same object on a buffer view; the KHR one adds the
+//! `COLOR` filter (YCoCg colours, 4 or 8 bytes) and version 1 of the
+//! attribute bitstream, which meshoptimizer's decoder (1.3, bundled by the
+//! `meshopt` crate) reads as it reads version 0, from the stream's first
+//! byte.
 //!
 //! The extension's object on a buffer view names the compressed bytes
 //! (`buffer`, `byteOffset`, `byteLength`) and what they decode to: `count`
@@ -15,7 +21,8 @@
 
 use serde::Deserialize;
 
-/// A buffer view's `EXT_meshopt_compression` object, as the file has it.
+/// A buffer view's `EXT_meshopt_compression` or `KHR_meshopt_compression`
+/// object, as the file has it.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Compressed {
@@ -68,6 +75,9 @@ pub enum Filter {
     Quaternion,
     /// Floats as an 8-bit exponent and a 24-bit mantissa (4 bytes each).
     Exponential,
+    /// RGBA colours in YCoCg (4 or 8 bytes; `KHR_meshopt_compression`
+    /// only).
+    Color,
 }
 
 impl Compressed {
@@ -118,7 +128,7 @@ impl Compressed {
         }
         let fits = match self.filter {
             Filter::None | Filter::Exponential => true,
-            Filter::Octahedral => s == 4 || s == 8,
+            Filter::Octahedral | Filter::Color => s == 4 || s == 8,
             Filter::Quaternion => s == 8,
         };
         if !fits {
@@ -189,6 +199,12 @@ impl Compressed {
             (Filter::Exponential, _) => {
                 meshopt::decode_filter_exp::<1>(bytemuck::cast_slice_mut(words));
             }
+            (Filter::Color, 4) => {
+                meshopt::decode_filter_color::<u8>(bytemuck::cast_slice_mut(words));
+            }
+            (Filter::Color, _) => {
+                meshopt::decode_filter_color::<u16>(bytemuck::cast_slice_mut(words));
+            }
         }
     }
 }
@@ -207,12 +223,17 @@ impl Decoded {
     }
 }
 
-/// Whether a buffer's JSON extensions mark it an `EXT_meshopt_compression`
-/// fallback buffer (`"fallback": true`): one whose bytes need not be read.
+/// The two extensions' names: the ratified one first.
+pub const EXTENSIONS: [&str; 2] = ["KHR_meshopt_compression", "EXT_meshopt_compression"];
+
+/// Whether a buffer's JSON extensions mark it a fallback buffer of either
+/// extension (`"fallback": true`): one whose bytes need not be read.
 pub fn is_fallback(extensions: &serde_json::Map<String, serde_json::Value>) -> bool {
-    extensions
-        .get("EXT_meshopt_compression")
-        .and_then(|e| e.get("fallback"))
-        .and_then(|f| f.as_bool())
-        .unwrap_or(false)
+    EXTENSIONS.iter().any(|name| {
+        extensions
+            .get(*name)
+            .and_then(|e| e.get("fallback"))
+            .and_then(|f| f.as_bool())
+            .unwrap_or(false)
+    })
 }

@@ -8,6 +8,7 @@ pub mod asset;
 pub mod asset_scene;
 pub mod builder;
 pub mod camera;
+pub mod draco;
 pub mod environment;
 pub mod file;
 pub mod format;
