@@ -12,6 +12,54 @@ use wide::f32x8;
 /// [`Bvh::closest_hits_into`](crate::accel::bvh::Bvh::closest_hits_into).
 pub const NO_PRIM: u32 = u32::MAX;
 
+/// An any-hit filter: which candidate hits of one ray a query keeps.
+///
+/// A filtered query ([`Bvh::closest_hit_filtered`](crate::accel::bvh::Bvh::closest_hit_filtered),
+/// [`Bvh::occluded_filtered`](crate::accel::bvh::Bvh::occluded_filtered)
+/// and their batches) asks it about each candidate hit on a primitive
+/// that [`may_pass`](Self::may_pass) before the candidate shrinks the
+/// ray's interval; a candidate that [`passes`](Self::passes) is as if it
+/// were not there, and the walk goes on. The hierarchy knows nothing of
+/// what the primitives are made of: the filter (the integrator's, for
+/// alpha-tested materials) does. Its answers must depend only on the ray
+/// and the candidate, never on the order in which candidates are met, so
+/// that the answer is the smallest `(t, index)` among the hits that do
+/// not pass, whatever the walk.
+pub trait HitFilter {
+    /// Whether a hit on primitive `prim` (a global index) may let the ray
+    /// through: a cheap flag; hits on other primitives are kept untested.
+    fn may_pass(&self, prim: u32) -> bool;
+    /// Whether the ray goes through primitive `prim`, hit at `t`.
+    fn passes(&self, prim: u32, t: f32) -> bool;
+}
+
+impl<F: HitFilter + ?Sized> HitFilter for &F {
+    #[inline(always)]
+    fn may_pass(&self, prim: u32) -> bool {
+        (**self).may_pass(prim)
+    }
+    #[inline(always)]
+    fn passes(&self, prim: u32, t: f32) -> bool {
+        (**self).passes(prim, t)
+    }
+}
+
+/// The filter that keeps every hit (a filtered query with it answers as
+/// the plain query does).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct KeepAll;
+
+impl HitFilter for KeepAll {
+    #[inline(always)]
+    fn may_pass(&self, _prim: u32) -> bool {
+        false
+    }
+    #[inline(always)]
+    fn passes(&self, _prim: u32, _t: f32) -> bool {
+        false
+    }
+}
+
 /// The closest hit of one ray: primitive index and distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {

@@ -26,7 +26,7 @@
 //! front-end table (`docs/architecture.md` counts the files).
 
 pub use super::Kinds;
-use crate::accel::hit::{Hit, PackHits};
+use crate::accel::hit::{Hit, HitFilter, KeepAll, PackHits};
 use crate::accel::simd::Lanes;
 use crate::math::{Real, V3};
 use crate::scene::Scene;
@@ -387,24 +387,38 @@ pub fn closest_hit_brute_force_shapes(
     t_min: f32,
     t_max: f32,
 ) -> Option<Hit> {
-    struct Brute {
+    closest_hit_brute_force_filtered(shapes, o, d, (t_min, t_max), &KeepAll)
+}
+
+/// [`closest_hit_brute_force_shapes`] among the hits that `filter` does
+/// not let through ([`HitFilter`]): the smallest `(t, index)` of those,
+/// what [`Bvh::closest_hit_filtered`](crate::accel::bvh::Bvh::closest_hit_filtered)
+/// returns bit for bit.
+pub fn closest_hit_brute_force_filtered<F: HitFilter>(
+    shapes: &Shapes<'_>,
+    o: Vec3,
+    d: Vec3,
+    (t_min, t_max): (f32, f32),
+    filter: &F,
+) -> Option<Hit> {
+    struct Brute<'f, F> {
         o: V3<f32>,
         d: V3<f32>,
         t_min: f32,
         t_max: f32,
         first: u32,
         best: Option<Hit>,
+        filter: &'f F,
     }
-    impl<'a> Visit<Slices<'a>> for Brute {
+    impl<'a, F: HitFilter> Visit<Slices<'a>> for Brute<'_, F> {
         fn visit<S: Shape>(&mut self, list: &&'a [S]) -> bool {
             for (j, s) in list.iter().enumerate() {
                 let limit = self.best.map_or(self.t_max, |h| h.t);
                 let (hit, t) = s.intersect(self.o, self.d, self.t_min);
-                if hit && t < limit {
-                    self.best = Some(Hit {
-                        triangle: self.first + j as u32,
-                        t,
-                    });
+                let prim = self.first + j as u32;
+                if hit && t < limit && !(self.filter.may_pass(prim) && self.filter.passes(prim, t))
+                {
+                    self.best = Some(Hit { triangle: prim, t });
                 }
             }
             self.first += list.len() as u32;
@@ -418,6 +432,7 @@ pub fn closest_hit_brute_force_shapes(
         t_max,
         first: 0,
         best: None,
+        filter,
     };
     shapes.any(&mut b);
     b.best

@@ -26,7 +26,9 @@
 //! tests every triangle instead (for tests: both give the same hits, bit for bit).
 
 use crate::accel::bvh::Bvh;
-use crate::accel::shape::{OwnedShapes, closest_hit_brute_force_shapes};
+use crate::accel::shape::{
+    OwnedShapes, closest_hit_brute_force_filtered, closest_hit_brute_force_shapes,
+};
 use crate::accel::triangle::Hit;
 use crate::film::{AovSample, accumulate};
 use crate::integrator::aov::{Vertex, record};
@@ -134,27 +136,31 @@ impl ReferenceTracer {
         self.closest_hit_before(o, d, f32::INFINITY)
     }
 
-    /// The closest hit before `t_max` on a surface that is there: hits
-    /// that a cut-out lets through ([`Tables::passes`]) are passed, and
-    /// the next one beyond each is sought.
+    /// The closest hit before `t_max` on a surface that is there: in a
+    /// scene with cut-outs, the walk puts each candidate hit on a surface
+    /// that may let the ray through to the ray's any-hit filter
+    /// ([`Tables::cutouts`]) and goes on past those that pass (brute force
+    /// likewise).
     fn closest_hit_before(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
-        let cast = |t_min: f32| match &self.accel {
-            Accel::Bvh(b) => b.closest_hit(o, d, t_min, t_max),
-            Accel::BruteForce(shapes) => {
-                closest_hit_brute_force_shapes(&shapes.as_shapes(), o, d, t_min, t_max)
-            }
-        };
-        let mut hit = cast(0.0);
         if self.tables.has_cutouts() {
-            let ray = (V3::from(o), V3::from(d));
-            while let Some(h) = hit {
-                if !self.tables.passes(h.triangle as usize, ray, h.t) {
-                    break;
-                }
-                hit = cast(h.t);
+            let filter = self.tables.cutouts((V3::from(o), V3::from(d)));
+            return match &self.accel {
+                Accel::Bvh(b) => b.closest_hit_filtered(o, d, (0.0, t_max), &filter),
+                Accel::BruteForce(shapes) => closest_hit_brute_force_filtered(
+                    &shapes.as_shapes(),
+                    o,
+                    d,
+                    (0.0, t_max),
+                    &filter,
+                ),
+            };
+        }
+        match &self.accel {
+            Accel::Bvh(b) => b.closest_hit(o, d, 0.0, t_max),
+            Accel::BruteForce(shapes) => {
+                closest_hit_brute_force_shapes(&shapes.as_shapes(), o, d, 0.0, t_max)
             }
         }
-        hit
     }
 
     /// The radiance arriving at `o` from direction `-d`, for a ray at

@@ -7,6 +7,7 @@
 //! but triangles, whose vertex attributes (normals, texture coordinates,
 //! colours, tangents) they keep.
 
+use crate::accel::hit::HitFilter;
 use crate::accel::shape::{Family, Kinds, Make, Shape, Shapes, VisitOne, kind_of};
 use crate::accel::simd::prefetch_lines;
 use crate::accel::triangle::hit_point;
@@ -93,6 +94,9 @@ pub struct Tables {
     /// Whether some material is not [`Coverage::Opaque`]: hits are then
     /// tested for cut-outs ([`Tables::passes`]).
     cutouts: bool,
+    /// Per material: whether it is not [`Coverage::Opaque`] (hits on it
+    /// may let rays through).
+    see_through: Vec<bool>,
     /// Triangles' vertex tangents ([`Scene::texturing`]), or empty (no
     /// normal textures to read).
     tangents: Vec<[[f32; 4]; 3]>,
@@ -182,6 +186,9 @@ impl Tables {
                 .collect(),
             textures: scene.texturing.textures.clone(),
             cutouts: (scene.materials.iter()).any(|m| m.coverage != Coverage::Opaque),
+            see_through: (scene.materials.iter())
+                .map(|m| m.coverage != Coverage::Opaque)
+                .collect(),
             emissive_maps: (scene.materials.iter()).any(|m| m.maps.emissive.is_some()),
             objects: scene.objects.of_primitive.clone(),
             tangents: match (scene.materials.iter()).any(|m| m.maps.normal.is_some()) {
@@ -551,6 +558,27 @@ impl Tables {
         self.cutouts
     }
 
+    /// The any-hit filter of the ray `(o, d)` for the hierarchy's filtered
+    /// queries ([`Bvh::closest_hit_filtered`](crate::accel::bvh::Bvh::closest_hit_filtered)):
+    /// hits on primitives of materials that are not opaque are put to
+    /// [`Tables::passes`]; the rest are kept untested.
+    #[inline(always)]
+    pub fn cutouts(&self, (o, d): (V3<f32>, V3<f32>)) -> Cutouts<'_> {
+        Cutouts {
+            tables: self,
+            ray: (o, d),
+        }
+    }
+
+    /// [`Tables::cutouts`] of ray `i` of rays given as columns.
+    #[inline(always)]
+    pub fn cutouts_of(&self, (o, d): ([&[f32]; 3], [&[f32]; 3]), i: usize) -> Cutouts<'_> {
+        self.cutouts((
+            V3::new(o[0][i], o[1][i], o[2][i]),
+            V3::new(d[0][i], d[1][i], d[2][i]),
+        ))
+    }
+
     /// Whether the ray `(o, d)` passes through primitive `prim`, which it
     /// hits at distance `t`: where its material's [`Coverage`] leaves the
     /// surface out there (alpha: the material's opacity × its base colour
@@ -580,12 +608,15 @@ impl Tables {
             Coverage::Opaque => false,
             Coverage::Mask(cutoff) => alpha < cutoff,
             Coverage::Blend => {
-                let mut h = xxhash_rust::xxh3::Xxh3::new();
-                for x in [o.x, o.y, o.z, d.x, d.y, d.z, t] {
-                    h.update(&x.to_bits().to_le_bytes());
+                // The bytes hashed in one call (XXH3 of a whole input is
+                // the streaming hasher's digest of it, bit for bit).
+                let mut bytes = [0u8; 36];
+                for (k, x) in [o.x, o.y, o.z, d.x, d.y, d.z, t].iter().enumerate() {
+                    bytes[4 * k..4 * k + 4].copy_from_slice(&x.to_bits().to_le_bytes());
                 }
-                h.update(&(prim as u64).to_le_bytes());
-                let u = (h.digest() >> 40) as f32 / (1u32 << 24) as f32;
+                bytes[28..].copy_from_slice(&(prim as u64).to_le_bytes());
+                let h = xxhash_rust::xxh3::xxh3_64(&bytes);
+                let u = (h >> 40) as f32 / (1u32 << 24) as f32;
                 u >= alpha
             }
         }
@@ -1016,5 +1047,25 @@ mod tests {
                 assert!(!tables.emits(h), "layout {k}: {h} is no primitive");
             }
         }
+    }
+}
+
+/// The any-hit filter of one ray ([`Tables::cutouts`]): the cut-outs that
+/// let it through, as the hierarchy's walk asks about its candidate hits.
+#[derive(Clone, Copy)]
+pub struct Cutouts<'a> {
+    tables: &'a Tables,
+    ray: (V3<f32>, V3<f32>),
+}
+
+impl HitFilter for Cutouts<'_> {
+    #[inline(always)]
+    fn may_pass(&self, prim: u32) -> bool {
+        let t = self.tables;
+        t.see_through[t.material_of[prim as usize] as usize]
+    }
+    #[inline]
+    fn passes(&self, prim: u32, t: f32) -> bool {
+        self.tables.passes(prim as usize, self.ray, t)
     }
 }

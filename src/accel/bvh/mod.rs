@@ -42,7 +42,11 @@
 //! each leaf to the query, which keeps the closest hit ([`Bvh::closest_hit`],
 //! [`Bvh::closest_hits`]) or stops at the first ([`Bvh::occluded`],
 //! [`Bvh::occluded_batch`]). Batches of rays walk interleaved on large
-//! trees, with prefetches, so memory latency overlaps.
+//! trees, with prefetches, so memory latency overlaps. The filtered
+//! queries ([`Bvh::closest_hit_filtered`], [`Bvh::occluded_filtered`] and
+//! their columns) hand each candidate hit on a primitive that may let the
+//! ray through to an any-hit filter ([`HitFilter`]) before it counts:
+//! alpha-tested surfaces, without the walk knowing what they are.
 //!
 //! # Exactness
 //!
@@ -84,6 +88,7 @@ pub use node::MAX_KINDS;
 pub use two_level::{Placed, Placements, TwoLevel};
 pub use walk::{BATCH, WalkStats};
 
+use crate::accel::hit::HitFilter;
 use crate::accel::shape::{Family, Kind, Kinds, Make, Shape, Shapes, Slices, Visit, first_of};
 use crate::accel::simd::{Lanes, SimdWidth};
 use crate::accel::sphere::Sphere;
@@ -94,7 +99,10 @@ use node::{Child, Node8};
 use rayon::prelude::*;
 use std::marker::PhantomData;
 use std::time::Instant;
-use walk::{AnyHitKind, ClosestKind, CountingKind, Pack, QueryKind};
+use walk::{
+    AnyHitKind, ClosestKind, CountingKind, FilteredAnyHitKind, FilteredClosestKind, MakeQuery,
+    Pack, QueryKind,
+};
 use wide::f32x8;
 
 #[cfg(target_arch = "x86_64")]
@@ -578,6 +586,201 @@ impl Bvh {
         }
     }
 
+    /// One ray through the walk with the query `m` makes, at this tree's
+    /// width.
+    #[inline(always)]
+    fn one_made<M: MakeQuery>(&self, o: Vec3, d: Vec3, t_min: f32, m: M) -> M::Output {
+        match self.width {
+            SimdWidth::W8 => walk::walk_one_with(self, (o, d), t_min, m.make::<f32x8>(), true),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `one`.
+            SimdWidth::W16 => unsafe { one16_made(self, o, d, t_min, m) },
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
+        }
+    }
+
+    /// Rays `0..n` through the walk, `ray(i)` giving ray `i` and the query
+    /// that it makes, at this tree's width (with the primitives in front of
+    /// the tree).
+    #[inline(always)]
+    fn many_made<M: MakeQuery>(
+        &self,
+        n: usize,
+        ray: impl Fn(usize) -> (Vec3, Vec3, M),
+        t_min: f32,
+        out: impl FnMut(usize, M::Output),
+    ) {
+        match self.width {
+            SimdWidth::W8 => walk::walk_many_with::<f32x8, M::Q<f32x8>>(
+                self,
+                n,
+                #[inline(always)]
+                |i| {
+                    let (o, d, m) = ray(i);
+                    (o, d, m.make::<f32x8>())
+                },
+                t_min,
+                true,
+                out,
+            ),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `one`.
+            SimdWidth::W16 => unsafe { many16_made(self, n, ray, t_min, out) },
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
+        }
+    }
+
+    /// [`Bvh::closest_hit`] among the hits that `filter` does not let
+    /// through ([`HitFilter`]: alpha-tested surfaces): a candidate hit on
+    /// a primitive that may pass is put to the filter before it shortens
+    /// the ray, and the walk goes on past those that pass. The smallest
+    /// `(t, primitive index)` of the hits that do not pass, bit for bit
+    /// what [`closest_hit_brute_force_filtered`](crate::accel::shape::closest_hit_brute_force_filtered)
+    /// returns.
+    #[inline(never)]
+    pub fn closest_hit_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        (t_min, t_max): (f32, f32),
+        filter: &F,
+    ) -> Option<Hit> {
+        if let Some(two) = &self.two_level {
+            return as_hit(two.closest_filtered(o, d, t_min, t_max, filter));
+        }
+        self.tree_closest_filtered(o, d, (t_min, t_max), filter)
+    }
+
+    /// [`Bvh::closest_hit_filtered`] through this tree's own walk (not a
+    /// two-level hierarchy's: its bottom trees).
+    #[inline(always)]
+    fn tree_closest_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        (t_min, t_max): (f32, f32),
+        filter: &F,
+    ) -> Option<Hit> {
+        as_hit(self.one_made(o, d, t_min, FilteredClosestKind { t_max, filter }))
+    }
+
+    /// [`Bvh::occluded_filtered`] through this tree's own walk.
+    #[inline(always)]
+    fn tree_occluded_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        (t_min, t_max): (f32, f32),
+        filter: &F,
+    ) -> bool {
+        self.one_made(o, d, t_min, FilteredAnyHitKind { t_max, filter })
+    }
+
+    /// [`Bvh::occluded`] among the hits that `filter` does not let
+    /// through: whether a primitive that does not pass lies on the
+    /// segment (exactly when [`Bvh::closest_hit_filtered`] would find one
+    /// there).
+    #[inline(never)]
+    pub fn occluded_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        (t_min, t_max): (f32, f32),
+        filter: &F,
+    ) -> bool {
+        if let Some(two) = &self.two_level {
+            return two.occluded_filtered(o, d, t_min, t_max, filter);
+        }
+        self.tree_occluded_filtered(o, d, (t_min, t_max), filter)
+    }
+
+    /// [`Bvh::closest_hits_columns`] among the hits that `filter(i)` does
+    /// not let through, for ray `i` ([`Bvh::closest_hit_filtered`]): the
+    /// same hits, bit for bit. The rays walk the tree (interleaved on a
+    /// large one), not the ray packets.
+    ///
+    /// # Panics
+    ///
+    /// If the columns and outputs differ in length.
+    #[inline(never)]
+    pub fn closest_hits_columns_filtered<F: HitFilter>(
+        &self,
+        (o, d): ([&[f32]; 3], [&[f32]; 3]),
+        (t_min, t_max): (f32, f32),
+        (t, prim): (&mut [f32], &mut [u32]),
+        filter: impl Fn(usize) -> F,
+    ) {
+        let n = t.len();
+        assert!(
+            prim.len() == n && o.iter().chain(&d).all(|c| c.len() == n),
+            "one origin, direction and output per ray"
+        );
+        if let Some(two) = &self.two_level {
+            for i in 0..n {
+                let (oi, di) = column_ray((o, d), i);
+                let f = filter(i);
+                (t[i], prim[i]) = two.closest_filtered(oi, di, t_min, t_max, &f);
+            }
+            return;
+        }
+        self.many_made(
+            n,
+            #[inline(always)]
+            |i| {
+                let (o, d) = column_ray((o, d), i);
+                let filter = filter(i);
+                (o, d, FilteredClosestKind { t_max, filter })
+            },
+            t_min,
+            #[inline(always)]
+            |i, (ti, p)| (t[i], prim[i]) = (ti, p),
+        );
+    }
+
+    /// [`Bvh::occluded_columns`] among the hits that `filter(i)` does not
+    /// let through, for segment `i` ([`Bvh::occluded_filtered`]).
+    ///
+    /// # Panics
+    ///
+    /// If the columns and outputs differ in length.
+    #[inline(never)]
+    pub fn occluded_columns_filtered<F: HitFilter>(
+        &self,
+        (o, d): ([&[f32]; 3], [&[f32]; 3]),
+        (t_min, t_max): (f32, &[f32]),
+        out: &mut [bool],
+        filter: impl Fn(usize) -> F,
+    ) {
+        let n = out.len();
+        assert!(
+            t_max.len() == n && o.iter().chain(&d).all(|c| c.len() == n),
+            "one origin, direction, end and output per segment"
+        );
+        if let Some(two) = &self.two_level {
+            for i in 0..n {
+                let (oi, di) = column_ray((o, d), i);
+                let f = filter(i);
+                out[i] = two.occluded_filtered(oi, di, t_min, t_max[i], &f);
+            }
+            return;
+        }
+        self.many_made(
+            n,
+            #[inline(always)]
+            |i| {
+                let (o, d) = column_ray((o, d), i);
+                let filter = filter(i);
+                let t_max = t_max[i];
+                (o, d, FilteredAnyHitKind { t_max, filter })
+            },
+            t_min,
+            #[inline(always)]
+            |i, b| out[i] = b,
+        );
+    }
+
     /// The closest hit of the ray `o + t·d` with `t_min < t < t_max`: the
     /// smallest `(t, primitive index)`, bit for bit what
     /// [`closest_hit_brute_force_prims`](crate::accel::sphere::closest_hit_brute_force_prims)
@@ -1048,4 +1251,35 @@ fn many16<K: QueryKind>(
     out: impl FnMut(usize, K::Output),
 ) {
     walk::walk_many::<F32x16, K::Q<F32x16>>(bvh, n, ray, t_min, front, out)
+}
+
+/// [`Bvh::one_made`] at 16 lanes, compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn one16_made<M: MakeQuery>(bvh: &Bvh, o: Vec3, d: Vec3, t_min: f32, m: M) -> M::Output {
+    walk::walk_one_with(bvh, (o, d), t_min, m.make::<F32x16>(), true)
+}
+
+/// [`Bvh::many_made`] at 16 lanes, compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn many16_made<M: MakeQuery>(
+    bvh: &Bvh,
+    n: usize,
+    ray: impl Fn(usize) -> (Vec3, Vec3, M),
+    t_min: f32,
+    out: impl FnMut(usize, M::Output),
+) {
+    walk::walk_many_with::<F32x16, M::Q<F32x16>>(
+        bvh,
+        n,
+        #[inline(always)]
+        |i| {
+            let (o, d, m) = ray(i);
+            (o, d, m.make::<F32x16>())
+        },
+        t_min,
+        true,
+        out,
+    )
 }

@@ -30,7 +30,7 @@
 //! ones, bit for bit.
 
 use super::{Bvh, BvhOptions};
-use crate::accel::hit::NO_PRIM;
+use crate::accel::hit::{Hit, HitFilter, NO_PRIM};
 use glam::{Affine3A, Vec3, Vec3A};
 
 /// A leaf of the top level holds at most this many placements.
@@ -227,6 +227,45 @@ impl TwoLevel {
     /// The closest hit of `o + t·d`, `t_min < t < t_max`: `(t, global
     /// index)`, or `(t_max, NO_PRIM)` where none.
     pub fn closest(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> (f32, u32) {
+        self.closest_by(o, d, t_min, t_max, |_, bvh, (oo, dd), limit| {
+            bvh.closest_hit(oo, dd, t_min, limit)
+        })
+    }
+
+    /// [`TwoLevel::closest`] among the hits that `filter` (of global
+    /// primitive indices) does not let through
+    /// ([`Bvh::closest_hit_filtered`]): each bottom tree is walked with
+    /// the filter, its local indices made global. A primitive left out
+    /// of the flattened scene passes.
+    pub fn closest_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+        filter: &F,
+    ) -> (f32, u32) {
+        self.closest_by(o, d, t_min, t_max, |e, bvh, (oo, dd), limit| {
+            let mapped = Mapped {
+                two: self,
+                e,
+                filter,
+            };
+            bvh.tree_closest_filtered(oo, dd, (t_min, limit), &mapped)
+        })
+    }
+
+    /// The closest hit over the placements, `cast(entry, bottom tree,
+    /// ray in its space, limit)` finding each bottom tree's.
+    #[inline(always)]
+    fn closest_by(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+        cast: impl Fn(&Entry, &Bvh, (Vec3, Vec3), f32) -> Option<Hit>,
+    ) -> (f32, u32) {
         let mut best = (t_max, NO_PRIM);
         self.walk(o, d, t_min, t_max, |e, best_t| {
             // Up to and including the best t so far: a lower index at the
@@ -236,9 +275,8 @@ impl TwoLevel {
             } else {
                 best.0.next_up()
             };
-            let (oo, dd) = e.ray(o, d);
             let bottom = &self.bottoms[e.bottom as usize];
-            if let Some(h) = bottom.bvh.closest_hit(oo, dd, t_min, limit)
+            if let Some(h) = cast(e, &bottom.bvh, e.ray(o, d), limit)
                 && let Some(g) = self.global(e, h.triangle)
                 && (h.t < best.0 || (h.t == best.0 && g < best.1))
             {
@@ -252,12 +290,45 @@ impl TwoLevel {
 
     /// Whether anything lies on `o + t·d`, `t_min < t < t_max`.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.occluded_by(o, d, t_min, t_max, |_, bvh, (oo, dd)| {
+            bvh.occluded(oo, dd, t_min, t_max)
+        })
+    }
+
+    /// [`TwoLevel::occluded`] among the hits that `filter` does not let
+    /// through (as [`TwoLevel::closest_filtered`]).
+    pub fn occluded_filtered<F: HitFilter>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+        filter: &F,
+    ) -> bool {
+        self.occluded_by(o, d, t_min, t_max, |e, bvh, (oo, dd)| {
+            let mapped = Mapped {
+                two: self,
+                e,
+                filter,
+            };
+            bvh.tree_occluded_filtered(oo, dd, (t_min, t_max), &mapped)
+        })
+    }
+
+    /// Whether some bottom tree's `test(entry, tree, ray in its space)`
+    /// finds the segment blocked.
+    #[inline(always)]
+    fn occluded_by(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+        test: impl Fn(&Entry, &Bvh, (Vec3, Vec3)) -> bool,
+    ) -> bool {
         let mut hit = false;
         self.walk(o, d, t_min, t_max, |e, _| {
-            let (oo, dd) = e.ray(o, d);
-            hit = self.bottoms[e.bottom as usize]
-                .bvh
-                .occluded(oo, dd, t_min, t_max);
+            hit = test(e, &self.bottoms[e.bottom as usize].bvh, e.ray(o, d));
             hit
         });
         hit
@@ -356,6 +427,25 @@ impl TwoLevel {
     /// Primitives in the bottom trees (each unique mesh once, and the rest).
     pub fn bottom_prim_count(&self) -> usize {
         self.bottoms.iter().map(|b| b.bvh.prim_count()).sum()
+    }
+}
+
+/// A filter of global primitive indices, asked about a bottom tree's
+/// local ones (as placement `e` places them).
+struct Mapped<'a, F> {
+    two: &'a TwoLevel,
+    e: &'a Entry,
+    filter: &'a F,
+}
+
+impl<F: HitFilter> HitFilter for Mapped<'_, F> {
+    #[inline]
+    fn may_pass(&self, local: u32) -> bool {
+        (self.two.global(self.e, local)).is_none_or(|g| self.filter.may_pass(g))
+    }
+    #[inline]
+    fn passes(&self, local: u32, t: f32) -> bool {
+        (self.two.global(self.e, local)).is_none_or(|g| self.filter.passes(g, t))
     }
 }
 

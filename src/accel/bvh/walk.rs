@@ -6,6 +6,7 @@
 
 use super::node::{Child, Node8, NodeRay};
 use super::{Bvh, KindPacks, LanesIn, PacksOf};
+use crate::accel::hit::HitFilter;
 use crate::accel::shape::{Shape, ShapePack, Visit, VisitOne};
 use crate::accel::simd::{Lanes, prefetch_lines};
 use crate::accel::triangle::PackHits;
@@ -69,8 +70,6 @@ pub(crate) trait Query<R: Lanes> {
     /// Whether children are visited nearest first (worth it when a hit
     /// shortens the ray).
     const ORDERED: bool;
-    /// A query over `t < t_max`.
-    fn new(t_max: f32) -> Self;
     /// Boxes the ray enters beyond this are skipped.
     fn cull(&self) -> f32;
     /// Test a leaf of packs of one kind (triangles or spheres); `true`
@@ -85,12 +84,29 @@ pub(crate) trait Query<R: Lanes> {
     fn node(&mut self) {}
 }
 
+/// A query made from its ray's `t_max` alone (not a filtered one).
+pub(crate) trait Plain<R: Lanes>: Query<R> {
+    /// A query over `t < t_max`.
+    fn new(t_max: f32) -> Self;
+}
+
 /// A query for both lane types, so a caller can pick the width at run time.
 pub(crate) trait QueryKind {
     /// The answer.
     type Output;
     /// The query for lane type `R`.
+    type Q<R: LanesIn>: Plain<R, Output = Self::Output>;
+}
+
+/// One ray's query, made at whichever lane type the tree has (for queries
+/// that carry more than `t_max`: the filtered ones).
+pub(crate) trait MakeQuery {
+    /// The answer.
+    type Output;
+    /// The query for lane type `R`.
     type Q<R: LanesIn>: Query<R, Output = Self::Output>;
+    /// The query, at lane type `R`.
+    fn make<R: LanesIn>(self) -> Self::Q<R>;
 }
 
 /// The distance past which a box is skipped, given the best hit's `t`:
@@ -107,10 +123,7 @@ pub(crate) struct Closest<R: Lanes> {
     cull: f32,
 }
 
-impl<R: Lanes> Query<R> for Closest<R> {
-    /// `(t, primitive)`, with [`NO_PRIM`] for no hit.
-    type Output = (f32, u32);
-    const ORDERED: bool = true;
+impl<R: Lanes> Plain<R> for Closest<R> {
     #[inline(always)]
     fn new(t_max: f32) -> Self {
         Self {
@@ -119,6 +132,12 @@ impl<R: Lanes> Query<R> for Closest<R> {
             cull: cull_bound(t_max),
         }
     }
+}
+
+impl<R: Lanes> Query<R> for Closest<R> {
+    /// `(t, primitive)`, with [`NO_PRIM`] for no hit.
+    type Output = (f32, u32);
+    const ORDERED: bool = true;
     #[inline(always)]
     fn cull(&self) -> f32 {
         self.cull
@@ -164,9 +183,7 @@ pub(crate) struct AnyHit<R: Lanes> {
     hit: bool,
 }
 
-impl<R: Lanes> Query<R> for AnyHit<R> {
-    type Output = bool;
-    const ORDERED: bool = false;
+impl<R: Lanes> Plain<R> for AnyHit<R> {
     #[inline(always)]
     fn new(t_max: f32) -> Self {
         Self {
@@ -175,6 +192,11 @@ impl<R: Lanes> Query<R> for AnyHit<R> {
             hit: false,
         }
     }
+}
+
+impl<R: Lanes> Query<R> for AnyHit<R> {
+    type Output = bool;
+    const ORDERED: bool = false;
     #[inline(always)]
     fn cull(&self) -> f32 {
         self.cull
@@ -207,6 +229,187 @@ pub(crate) struct AnyHitKind;
 impl QueryKind for AnyHitKind {
     type Output = bool;
     type Q<R: LanesIn> = AnyHit<R>;
+}
+
+/// The lanes among `candidates` (bits) whose hit `(t, index)` `filter`
+/// lets through: those on a primitive that may pass and passes there.
+#[inline(never)]
+fn passing<R: Lanes, F: HitFilter>(filter: &F, t: R, index: R::Index, candidates: u32) -> u32 {
+    let (mut ts, mut prims) = ([0.0f32; 16], [0u32; 16]);
+    t.write_to(&mut ts[..R::LANES]);
+    R::index_write_to(index, &mut prims[..R::LANES]);
+    let (mut pass, mut c) = (0u32, candidates);
+    while c != 0 {
+        let l = c.trailing_zeros() as usize;
+        c &= c - 1;
+        if filter.may_pass(prims[l]) && filter.passes(prims[l], ts[l]) {
+            pass |= 1 << l;
+        }
+    }
+    pass
+}
+
+/// The lanes whose bit is set in `bits`, as a mask.
+#[inline(always)]
+fn lanes_mask<R: Lanes>(bits: u32) -> R::Mask {
+    let set: [i32; 16] = std::array::from_fn(|l| ((bits >> l) & 1) as i32);
+    R::index_lt(R::index_splat(0), R::index_from_slice(&set[..R::LANES], 0))
+}
+
+/// [`Closest`] among the hits that `F` does not let through: each pack's
+/// new best lanes are put to the filter before they count, and a lane that
+/// passes keeps its best before the pack. The smallest `(t, index)` of the
+/// hits that do not pass, whatever the order of the walk.
+pub(crate) struct FilteredClosest<R: Lanes, F> {
+    best: PackHits<R>,
+    t_max: f32,
+    cull: f32,
+    filter: F,
+}
+
+impl<R: Lanes, F: HitFilter> FilteredClosest<R, F> {
+    #[inline(always)]
+    pub fn new(t_max: f32, filter: F) -> Self {
+        Self {
+            best: PackHits::new(t_max),
+            t_max,
+            cull: cull_bound(t_max),
+            filter,
+        }
+    }
+}
+
+impl<R: Lanes, F: HitFilter> Query<R> for FilteredClosest<R, F> {
+    type Output = (f32, u32);
+    const ORDERED: bool = true;
+    #[inline(always)]
+    fn cull(&self) -> f32 {
+        self.cull
+    }
+    #[inline(always)]
+    fn leaf<P: ShapePack<R>>(
+        &mut self,
+        r: &PackRay<R>,
+        packs: &[Pack<P>],
+        _in_order: bool,
+    ) -> bool {
+        let (o, d, t_min) = r.wide();
+        let mut best = self.best;
+        for Pack(p) in packs {
+            let before = best;
+            p.intersect::<false>(&o, &d, t_min, &mut best);
+            // A lane's index changes exactly where a primitive of this
+            // pack became its best.
+            let new = R::bits(
+                R::index_lt(best.index, before.index) | R::index_lt(before.index, best.index),
+            );
+            if new != 0 {
+                let pass = passing(&self.filter, best.t, best.index, new);
+                if pass != 0 {
+                    let m = lanes_mask::<R>(pass);
+                    best.t = R::select(m, before.t, best.t);
+                    best.index = R::index_select(m, before.index, best.index);
+                }
+            }
+        }
+        self.best = best;
+        self.cull = cull_bound(best.t.min_lane());
+        false
+    }
+    #[inline(always)]
+    fn output(&self) -> (f32, u32) {
+        self.best.closest_below(self.t_max)
+    }
+}
+
+/// [`AnyHit`] among the hits that `F` does not let through: a pack's hits
+/// are put to the filter, and the walk stops at the first that does not
+/// pass.
+pub(crate) struct FilteredAnyHit<R: Lanes, F> {
+    t_max: f32,
+    wide_t_max: R,
+    cull: f32,
+    hit: bool,
+    filter: F,
+}
+
+impl<R: Lanes, F: HitFilter> FilteredAnyHit<R, F> {
+    #[inline(always)]
+    pub fn new(t_max: f32, filter: F) -> Self {
+        Self {
+            t_max,
+            wide_t_max: R::splat(t_max),
+            cull: cull_bound(t_max),
+            hit: false,
+            filter,
+        }
+    }
+}
+
+impl<R: Lanes, F: HitFilter> Query<R> for FilteredAnyHit<R, F> {
+    type Output = bool;
+    const ORDERED: bool = false;
+    #[inline(always)]
+    fn cull(&self) -> f32 {
+        self.cull
+    }
+    #[inline(always)]
+    fn leaf<P: ShapePack<R>>(
+        &mut self,
+        r: &PackRay<R>,
+        packs: &[Pack<P>],
+        _in_order: bool,
+    ) -> bool {
+        let (o, d, t_min) = r.wide();
+        for Pack(p) in packs {
+            if !p.occludes(&o, &d, t_min, self.wide_t_max) {
+                continue;
+            }
+            // Which lanes: the same test, lane for lane.
+            let mut h = PackHits::new(self.t_max);
+            p.intersect::<false>(&o, &d, t_min, &mut h);
+            let hits = R::bits(h.t.lt(self.wide_t_max));
+            if passing(&self.filter, h.t, h.index, hits) != hits {
+                self.hit = true;
+                return true;
+            }
+        }
+        false
+    }
+    #[inline(always)]
+    fn output(&self) -> bool {
+        self.hit
+    }
+}
+
+/// A filtered closest-hit query of one ray, at either width.
+pub(crate) struct FilteredClosestKind<F> {
+    pub t_max: f32,
+    pub filter: F,
+}
+
+impl<F: HitFilter> MakeQuery for FilteredClosestKind<F> {
+    type Output = (f32, u32);
+    type Q<R: LanesIn> = FilteredClosest<R, F>;
+    #[inline(always)]
+    fn make<R: LanesIn>(self) -> FilteredClosest<R, F> {
+        FilteredClosest::new(self.t_max, self.filter)
+    }
+}
+
+/// A filtered occlusion query of one ray, at either width.
+pub(crate) struct FilteredAnyHitKind<F> {
+    pub t_max: f32,
+    pub filter: F,
+}
+
+impl<F: HitFilter> MakeQuery for FilteredAnyHitKind<F> {
+    type Output = bool;
+    type Q<R: LanesIn> = FilteredAnyHit<R, F>;
+    #[inline(always)]
+    fn make<R: LanesIn>(self) -> FilteredAnyHit<R, F> {
+        FilteredAnyHit::new(self.t_max, self.filter)
+    }
 }
 
 /// Test the primitives that are outside the tree, kind after kind; true
@@ -361,15 +564,26 @@ fn nearest(t_near: f32x8, live: u32) -> u32 {
 /// One ray through the tree, its state in locals. `front`: test the
 /// primitives in front of the tree too (false where the caller has).
 #[inline(always)]
-pub(crate) fn walk_one<R: LanesIn, Q: Query<R>>(
+pub(crate) fn walk_one<R: LanesIn, Q: Plain<R>>(
     bvh: &Bvh,
     (o, d): (Vec3, Vec3),
     t_min: f32,
     t_max: f32,
     front: bool,
 ) -> Q::Output {
+    walk_one_with::<R, Q>(bvh, (o, d), t_min, Q::new(t_max), front)
+}
+
+/// [`walk_one`] with the query `q`, made by the caller.
+#[inline(always)]
+pub(crate) fn walk_one_with<R: LanesIn, Q: Query<R>>(
+    bvh: &Bvh,
+    (o, d): (Vec3, Vec3),
+    t_min: f32,
+    mut q: Q,
+    front: bool,
+) -> Q::Output {
     let r = PackRay::new(o, d, t_min);
-    let mut q = Q::new(t_max);
     if !is_ray(o, d) || front && start(bvh, &r, &mut q) {
         return q.output();
     }
@@ -417,11 +631,11 @@ struct Walk<R: Lanes, Q> {
 
 impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
     #[inline(always)]
-    fn new(bvh: &Bvh, o: Vec3, d: Vec3, (t_min, t_max): (f32, f32), front: bool) -> Self {
+    fn new(bvh: &Bvh, o: Vec3, d: Vec3, (t_min, q): (f32, Q), front: bool) -> Self {
         let mut w = Walk {
             r: PackRay::new(o, d, t_min),
             nr: NodeRay::new(o, d, t_min),
-            q: Q::new(t_max),
+            q,
             stack: Stack::new(),
             cur: bvh.root,
             group: Group::NONE,
@@ -434,10 +648,10 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
 
     /// Start over with another ray, reusing the stack's memory in place.
     #[inline(always)]
-    fn reset(&mut self, bvh: &Bvh, o: Vec3, d: Vec3, (t_min, t_max): (f32, f32), front: bool) {
+    fn reset(&mut self, bvh: &Bvh, o: Vec3, d: Vec3, (t_min, q): (f32, Q), front: bool) {
         self.r = PackRay::new(o, d, t_min);
         self.nr = NodeRay::new(o, d, t_min);
-        self.q = Q::new(t_max);
+        self.q = q;
         self.stack.len = 0;
         self.cur = bvh.root;
         self.group = Group::NONE;
@@ -495,18 +709,43 @@ impl<R: LanesIn, Q: Query<R>> Walk<R, Q> {
 /// visit next, and the other rays' steps run while it arrives from memory.
 /// A small tree is walked one ray after another.
 #[inline(always)]
-pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
+pub(crate) fn walk_many<R: LanesIn, Q: Plain<R>>(
     bvh: &Bvh,
     n: usize,
     ray: impl Fn(usize) -> (Vec3, Vec3, f32),
+    t_min: f32,
+    front: bool,
+    out: impl FnMut(usize, Q::Output),
+) {
+    walk_many_with::<R, Q>(
+        bvh,
+        n,
+        #[inline(always)]
+        |i| {
+            let (o, d, t_max) = ray(i);
+            (o, d, Q::new(t_max))
+        },
+        t_min,
+        front,
+        out,
+    )
+}
+
+/// [`walk_many`] with each ray's query made by the caller: `ray(i)` gives
+/// ray `i`'s origin, direction and query.
+#[inline(always)]
+pub(crate) fn walk_many_with<R: LanesIn, Q: Query<R>>(
+    bvh: &Bvh,
+    n: usize,
+    ray: impl Fn(usize) -> (Vec3, Vec3, Q),
     t_min: f32,
     front: bool,
     mut out: impl FnMut(usize, Q::Output),
 ) {
     if !bvh.interleave || !bvh.root.is_node() {
         for i in 0..n {
-            let (o, d, t_max) = ray(i);
-            out(i, walk_one::<R, Q>(bvh, (o, d), t_min, t_max, front));
+            let (o, d, q) = ray(i);
+            out(i, walk_one_with::<R, Q>(bvh, (o, d), t_min, q, front));
         }
         return;
     }
@@ -515,8 +754,8 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
     let mut live = 0usize;
     for (index, slot) in slots.iter_mut() {
         if next < n {
-            let (o, d, t_max) = ray(next);
-            *slot = Some(Walk::new(bvh, o, d, (t_min, t_max), front));
+            let (o, d, q) = ray(next);
+            *slot = Some(Walk::new(bvh, o, d, (t_min, q), front));
             *index = next;
             next += 1;
             live += 1;
@@ -531,8 +770,8 @@ pub(crate) fn walk_many<R: LanesIn, Q: Query<R>>(
             }
             out(*index, w.q.output());
             if next < n {
-                let (o, d, t_max) = ray(next);
-                w.reset(bvh, o, d, (t_min, t_max), front);
+                let (o, d, q) = ray(next);
+                w.reset(bvh, o, d, (t_min, q), front);
                 w.prefetch(bvh);
                 *index = next;
                 next += 1;
@@ -604,9 +843,7 @@ pub(crate) struct Counting<Q> {
     pub stats: WalkStats,
 }
 
-impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
-    type Output = (Q::Output, WalkStats);
-    const ORDERED: bool = Q::ORDERED;
+impl<R: Lanes, Q: Plain<R>> Plain<R> for Counting<Q> {
     #[inline(always)]
     fn new(t_max: f32) -> Self {
         Self {
@@ -614,6 +851,11 @@ impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
             stats: WalkStats::default(),
         }
     }
+}
+
+impl<R: Lanes, Q: Query<R>> Query<R> for Counting<Q> {
+    type Output = (Q::Output, WalkStats);
+    const ORDERED: bool = Q::ORDERED;
     #[inline(always)]
     fn cull(&self) -> f32 {
         self.q.cull()

@@ -7,7 +7,6 @@ use crate::accel::bvh::Bvh;
 use crate::accel::simd::Lanes;
 use crate::integrator::nee::ShadowRay;
 use crate::integrator::tables::Tables;
-use crate::math::V3;
 use wide::f32x8;
 
 /// Shadow rays, in columns (so that the hierarchy tests them 8 or 16 at a
@@ -116,29 +115,15 @@ pub fn shadow<P>(
     s.occluded.resize(n, false);
     let (o, d) = (s.origin.each_ref(), s.dir.each_ref());
     let (o, d) = (o.map(|c| &c[..n]), d.map(|c| &c[..n]));
-    bvh.occluded_columns(o, d, 0.0, &s.t_max[..n], &mut s.occluded[..n]);
     if tables.has_cutouts() {
-        // A blocked ray is blocked only by a surface that is there: its
-        // hits are walked from the closest, past those that let it
-        // through, as the reference tracer walks them.
-        for k in 0..n {
-            if !s.occluded[k] {
-                continue;
-            }
-            let ray = (
-                V3::new(o[0][k], o[1][k], o[2][k]),
-                V3::new(d[0][k], d[1][k], d[2][k]),
-            );
-            let cast = |t_min: f32| bvh.closest_hit(ray.0.into(), ray.1.into(), t_min, s.t_max[k]);
-            let mut hit = cast(0.0);
-            while let Some(h) = hit {
-                if !tables.passes(h.triangle as usize, ray, h.t) {
-                    break;
-                }
-                hit = cast(h.t);
-            }
-            s.occluded[k] = hit.is_some();
-        }
+        // A ray is blocked only by a surface that is there: the walk
+        // passes over the hits that a cut-out lets through, as the
+        // reference tracer's does.
+        bvh.occluded_columns_filtered((o, d), (0.0, &s.t_max[..n]), &mut s.occluded[..n], |k| {
+            tables.cutouts_of((o, d), k)
+        });
+    } else {
+        bvh.occluded_columns(o, d, 0.0, &s.t_max[..n], &mut s.occluded[..n]);
     }
     let (radiance, beta) = (&mut queue.radiance, &queue.beta);
     for (k, _) in s.occluded[..n].iter().enumerate().filter(|(_, b)| !**b) {
