@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::{TempDir, glb, split_glb};
+use common::{TempDir, glb, glb_mutations_never_panic, split_glb};
 use glam::{Mat4, Vec3};
 use serde_json::{Value, json};
 use std::path::Path;
@@ -411,39 +411,6 @@ fn flipped_and_truncated_draco_streams_never_panic() {
             .map(|&v| json["bufferViews"][v]["byteOffset"].as_u64().unwrap() as usize)
             .min()
             .unwrap();
-        let (mut loaded, mut refused) = (0, 0);
-        for k in first..bin.len() {
-            for b in [
-                {
-                    let mut b = bin.clone();
-                    b[k] ^= 0x5a;
-                    b
-                },
-                {
-                    let mut b = bin.clone();
-                    b[k] ^= 0x01;
-                    b
-                },
-                bin[..k].to_vec(),
-            ] {
-                let r = std::panic::catch_unwind(|| gltf::read(&glb(&json, &b), "test.glb", None));
-                match r.unwrap_or_else(|_| panic!("{name} byte {k}: a panic")) {
-                    Ok(a) => {
-                        loaded += 1;
-                        for m in &a.meshes {
-                            let n = m.positions.len() as u32;
-                            assert!(m.triangles.iter().flatten().all(|&i| i < n));
-                            assert!(m.positions.iter().all(|p| p.is_finite()));
-                        }
-                    }
-                    Err(e) => {
-                        refused += 1;
-                        assert!(e.to_string().starts_with("test.glb: "), "{e}");
-                    }
-                }
-            }
-        }
-        eprintln!("{name}: {loaded} loaded, {refused} refused");
-        assert!(refused > 0 && loaded > 0);
+        glb_mutations_never_panic(name, &json, &bin, first, &[0x5a, 0x01]);
     }
 }

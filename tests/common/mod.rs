@@ -435,3 +435,49 @@ pub fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     out.extend_from_slice(&b);
     out
 }
+
+/// Every byte of `bin` from `first` on XORed with each of `flips`, and
+/// `bin` cut short at each of those lengths, read as the GLB of `json`
+/// with that binary chunk: each is loaded or refused naming the file,
+/// never a panic, and what loads has its indices in range and finite
+/// positions. Returns how many loaded and how many were refused (both
+/// must happen: a mutation range that changes nothing tests nothing).
+#[allow(dead_code)]
+pub fn glb_mutations_never_panic(
+    what: &str,
+    json: &serde_json::Value,
+    bin: &[u8],
+    first: usize,
+    flips: &[u8],
+) -> (usize, usize) {
+    let (mut loaded, mut refused) = (0, 0);
+    for k in first..bin.len() {
+        let flipped = flips.iter().map(|&x| {
+            let mut b = bin.to_vec();
+            b[k] ^= x;
+            b
+        });
+        for b in flipped.chain([bin[..k].to_vec()]) {
+            let r = std::panic::catch_unwind(|| {
+                wavetrace::scene::gltf::read(&glb(json, &b), "test.glb", None)
+            });
+            match r.unwrap_or_else(|_| panic!("{what} byte {k}: a panic")) {
+                Ok(a) => {
+                    loaded += 1;
+                    for m in &a.meshes {
+                        let n = m.positions.len() as u32;
+                        assert!(m.triangles.iter().flatten().all(|&i| i < n));
+                        assert!(m.positions.iter().all(|p| p.is_finite()));
+                    }
+                }
+                Err(e) => {
+                    refused += 1;
+                    assert!(e.to_string().starts_with("test.glb: "), "{e}");
+                }
+            }
+        }
+    }
+    eprintln!("{what}: {loaded} loaded, {refused} refused");
+    assert!(refused > 0 && loaded > 0, "{what}");
+    (loaded, refused)
+}
