@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::{TempDir, glb, glb_mutations_never_panic, split_glb};
+use common::{TempDir, glb, glb_mutations_never_panic, read_glb as read, scene_of, split_glb};
 use glam::{Mat4, Vec3};
 use serde_json::{Value, json};
 use std::path::Path;
@@ -30,16 +30,6 @@ const ASSIMP_PLAIN: &str =
 
 fn data(name: &str) -> Vec<u8> {
     std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(name)).unwrap()
-}
-
-fn read(bytes: &[u8]) -> Asset {
-    gltf::read(bytes, "test.glb", None).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    asset_scene::load(&path, None).unwrap().0
 }
 
 fn render(scene: &Scene, engine: Engine, spp: u32) -> Film {

@@ -19,14 +19,14 @@
 
 mod common;
 
-use common::{TempDir, glb, glb_mutations_never_panic, split_glb};
+use common::{TempDir, glb, glb_mutations_never_panic, read_glb as read, scene_of, split_glb};
 use glam::{Mat4, Vec3};
 use serde_json::{Value, json};
 use std::path::Path;
 use wavetrace::film::Film;
 use wavetrace::render::{Engine, RenderSettings, Renderer};
 use wavetrace::scene::asset::Asset;
-use wavetrace::scene::{Scene, asset_scene, gltf};
+use wavetrace::scene::{Scene, gltf};
 
 const EXT: &str = "EXT_meshopt_compression";
 
@@ -111,16 +111,6 @@ fn compressed_textured(index_mode: &str) -> Vec<u8> {
         json[list] = json!(l.into_iter().chain([json!(EXT)]).collect::<Vec<_>>());
     }
     glb(&json, &bin)
-}
-
-fn read(bytes: &[u8]) -> Asset {
-    gltf::read(bytes, "test.glb", None).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    asset_scene::load(&path, None).unwrap().0
 }
 
 fn render(scene: &Scene, engine: Engine, spp: u32) -> Film {

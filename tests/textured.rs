@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::TempDir;
+use common::{TempDir, scene_of};
 use glam::{Quat, Vec3};
 use std::path::Path;
 use wavetrace::accel::bvh::{Bvh, BvhOptions};
@@ -373,12 +373,6 @@ fn checker(w: u32, h: u32, cells: u32, a: [u8; 4], b: [u8; 4]) -> Vec<u8> {
 }
 
 /// Writes `bytes` to `name` in `dir` and loads it as a scene.
-fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    asset_scene::load(&path, None).unwrap().0
-}
-
 fn render(scene: &Scene, s: &RenderSettings) -> Film {
     Renderer::new(scene, s).unwrap().render().0
 }

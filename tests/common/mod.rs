@@ -464,11 +464,7 @@ pub fn glb_mutations_never_panic(
             match r.unwrap_or_else(|_| panic!("{what} byte {k}: a panic")) {
                 Ok(a) => {
                     loaded += 1;
-                    for m in &a.meshes {
-                        let n = m.positions.len() as u32;
-                        assert!(m.triangles.iter().flatten().all(|&i| i < n));
-                        assert!(m.positions.iter().all(|p| p.is_finite()));
-                    }
+                    assert_asset_in_range(&a);
                 }
                 Err(e) => {
                     refused += 1;
@@ -480,4 +476,30 @@ pub fn glb_mutations_never_panic(
     eprintln!("{what}: {loaded} loaded, {refused} refused");
     assert!(refused > 0 && loaded > 0, "{what}");
     (loaded, refused)
+}
+
+/// What a loaded asset promises whatever file it came from: every index
+/// names a vertex of its mesh, every position is finite.
+#[allow(dead_code)]
+pub fn assert_asset_in_range(a: &wavetrace::scene::asset::Asset) {
+    for m in &a.meshes {
+        let n = m.positions.len() as u32;
+        assert!(m.triangles.iter().flatten().all(|&i| i < n));
+        assert!(m.positions.iter().all(|p| p.is_finite()));
+    }
+}
+
+/// The GLB `bytes` read as `test.glb`, or a panic with the error.
+#[allow(dead_code)]
+pub fn read_glb(bytes: &[u8]) -> wavetrace::scene::asset::Asset {
+    wavetrace::scene::gltf::read(bytes, "test.glb", None).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The asset file `bytes`, written as `name` in `dir`, loaded as
+/// `wavetrace FILE` loads it.
+#[allow(dead_code)]
+pub fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    wavetrace::scene::asset_scene::load(&path, None).unwrap().0
 }
