@@ -98,23 +98,41 @@ impl EnvLight {
         let (cols, rows) = (width * k, height * k);
         // Each cell: the largest luminance among the texels the bilinear
         // lookup reads inside it, times sin θ at its centre.
+        // The texels' luminances, and each column's texel columns (wrapped),
+        // found once rather than per cell: the same maxima, taken in the
+        // same order.
+        let lum: Vec<f32> = texels.iter().map(|&t| luminance(t)).collect();
+        let touched = |c: usize| {
+            let lo = ((c as f64 / k as f64) - 0.5).floor() as i64;
+            let hi = (((c + 1) as f64 / k as f64) - 0.5).floor() as i64 + 1;
+            (lo, hi)
+        };
+        let col_texels: Vec<Vec<usize>> = (0..cols)
+            .map(|c| {
+                let (lo, hi) = touched(c);
+                (lo..=hi)
+                    .map(|i| i.rem_euclid(width as i64) as usize)
+                    .collect()
+            })
+            .collect();
         let mut weight = vec![0.0f64; cols * rows];
         let mut mean = 0.0f64;
         for r in 0..rows {
             let theta = (r as f64 + 0.5) / rows as f64 * std::f64::consts::PI;
             let sin = theta.sin();
             // Texel rows touched: the cell's v-range in texel units, less ½.
-            let lo = ((r as f64 / k as f64) - 0.5).floor() as i64;
-            let hi = (((r + 1) as f64 / k as f64) - 0.5).floor() as i64 + 1;
-            for c in 0..cols {
-                let clo = ((c as f64 / k as f64) - 0.5).floor() as i64;
-                let chi = (((c + 1) as f64 / k as f64) - 0.5).floor() as i64 + 1;
-                let mut most = 0.0f32;
-                for j in lo..=hi {
+            let (lo, hi) = touched(r);
+            let row_texels: Vec<&[f32]> = (lo..=hi)
+                .map(|j| {
                     let j = j.clamp(0, height as i64 - 1) as usize;
-                    for i in clo..=chi {
-                        let i = i.rem_euclid(width as i64) as usize;
-                        most = most.max(luminance(texels[j * width + i]));
+                    &lum[j * width..(j + 1) * width]
+                })
+                .collect();
+            for (c, is) in col_texels.iter().enumerate() {
+                let mut most = 0.0f32;
+                for row in &row_texels {
+                    for &i in is {
+                        most = most.max(row[i]);
                     }
                 }
                 weight[r * cols + c] = f64::from(most) * sin;
@@ -221,7 +239,16 @@ impl EnvLight {
         let w = self.width as i64;
         let h = self.height as i64 - 1;
         let (i0, j0) = (x0 as i64, y0 as i64);
-        let i = [i0.rem_euclid(w) as usize, (i0 + 1).rem_euclid(w) as usize];
+        // `rem_euclid` (a division) only off the image: `u` in [0, 1]
+        // gives `i0` in [−1, w − 1].
+        let wrap = |i: i64| {
+            if (0..w).contains(&i) {
+                i
+            } else {
+                i.rem_euclid(w)
+            }
+        };
+        let i = [wrap(i0) as usize, wrap(i0 + 1) as usize];
         let j = [j0.clamp(0, h) as usize, (j0 + 1).clamp(0, h) as usize];
         let t = |i: usize, j: usize| self.texels[j * self.width + i];
         let (a, b, c, e) = (t(i[0], j[0]), t(i[1], j[0]), t(i[0], j[1]), t(i[1], j[1]));

@@ -37,6 +37,7 @@ use super::build::Aabb;
 use crate::accel::simd::Lanes;
 use crate::accel::triangle::{PackHits, TriangleEdges, V3Tri, moller_trumbore};
 use crate::math::V3;
+use std::mem::MaybeUninit;
 use std::ops::Range;
 
 /// Rays handled together: the first triangles, then each group in turn,
@@ -294,10 +295,18 @@ pub(crate) fn trace<R: Lanes, Q: PacketQuery<R>>(
     behind: &mut Vec<u32>,
 ) {
     // Per group (and the tree), the rays of the block that enter its box
-    // (with room for a whole packet's indices past the last).
-    let mut entering = [[0u32; BLOCK + 16]; MAX_GROUPS + 1];
+    // (with room for a whole packet's indices past the last). Only the
+    // plan's own rows are zeroed: the whole array, 18 KB, was on every
+    // call, for most plans ten times what they use.
+    let mut rows = [const { MaybeUninit::<[u32; BLOCK + 16]>::uninit() }; MAX_GROUPS + 1];
     let boxes = plan.groups.len() + usize::from(plan.has_tree());
-    let entering = &mut entering[..boxes];
+    for row in &mut rows[..boxes] {
+        row.write([0; BLOCK + 16]);
+    }
+    // SAFETY: the first `boxes` rows were written just above, and
+    // `MaybeUninit<T>` has `T`'s layout.
+    let entering: &mut [[u32; BLOCK + 16]] =
+        unsafe { std::slice::from_raw_parts_mut(rows.as_mut_ptr().cast(), boxes) };
     let n = q.len();
     for b in (0..n).step_by(BLOCK) {
         let block = b..(b + BLOCK).min(n);
