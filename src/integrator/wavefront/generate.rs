@@ -19,7 +19,18 @@ pub fn generate<S: Sampler>(
     pixels: Range<u32>,
     samples: Range<u32>,
 ) {
-    let sampler = ctx.sampler;
+    camera_rays(queue, ctx.sampler, frame, (pixels, samples));
+}
+
+/// [`generate`]'s work, with the sampler as an argument of its own (a
+/// reference argument tells the compiler that nothing the loop writes
+/// changes it, which a field of [`Ctx`] does not).
+fn camera_rays<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    sampler: &S,
+    frame: &Frame,
+    (pixels, samples): (Range<u32>, Range<u32>),
+) {
     let n = pixels.len() * samples.len();
     queue.set_len(n);
     if let Some(aov) = &mut queue.aov {

@@ -4,7 +4,7 @@ use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, RETIRED, SetBits, load8, mask_8};
 use crate::film::{accumulate_fixed, to_fixed_8};
 use crate::integrator::TileJob;
-use crate::integrator::nee::survival;
+use crate::integrator::nee::{Estimator, survival};
 use crate::integrator::sampler::Sampler;
 
 /// A path is finished when its ray escaped, when `last` is set (its next
@@ -25,7 +25,7 @@ pub fn retire<S: Sampler>(
 ) -> u64 {
     // At the last depth every row finishes: none is marked.
     if !last {
-        mark_finished(queue, ctx, depth);
+        mark_finished(queue, (ctx.sampler, ctx.est), depth);
     }
     let invalid = if job.has_aovs() {
         add_with_aovs(queue, job, last)
@@ -43,8 +43,15 @@ pub fn retire<S: Sampler>(
 /// Mark [`RETIRED`] the rows that finish before the last depth: those
 /// whose ray escaped, and those Russian roulette ends (whose numbers have
 /// a roulette slot: it is drawn or skipped here for every live row).
-fn mark_finished<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, depth: u32) {
-    let (sampler, estimator) = (ctx.sampler, ctx.est);
+///
+/// (The sampler and estimator come as arguments of their own, not in a
+/// [`Ctx`]: a reference argument tells the compiler that the loop's
+/// writes do not change them.)
+fn mark_finished<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    (sampler, estimator): (&S, &Estimator),
+    depth: u32,
+) {
     let n = queue.len();
     if !estimator.has_roulette_slot() {
         // A loop without branches: an escape is no pattern to predict.
