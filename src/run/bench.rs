@@ -46,9 +46,9 @@ pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
     ("sphere-1m", SuiteSize::Full, "379cfc6e6825943c"),
     ("sphere-1m", SuiteSize::Quick, "b5069d2f48863aed"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
-    ("asset-views", SuiteSize::Full, "32d9160b60b6610d"),
-    ("asset-views", SuiteSize::Quick, "ce4e21daa07f7878"),
-    ("asset-views", SuiteSize::Tiny, "98003d868d0be50b"),
+    ("asset-views", SuiteSize::Full, "5e67f66df1283c4d"),
+    ("asset-views", SuiteSize::Quick, "8bfdc7557ee65993"),
+    ("asset-views", SuiteSize::Tiny, "69833bac4741abbe"),
 ];
 
 /// How big the suite's renders are.
