@@ -81,6 +81,13 @@ pub struct Lights {
     /// share of the power), and each emitter's area.
     tree_probability: f32,
     areas: Vec<f32>,
+    /// Where [`sample_8`](Self::sample_8) needs no pick (one emitter, no
+    /// tree, nothing else to sample): that emitter in all eight lanes,
+    /// splatted once here rather than at every call.
+    single_8: Option<Box<Emitter<f32x8>>>,
+    /// Where moreover that emitter is a rectangle of the first kind: it in
+    /// all sixteen lanes of [`Pair`], for [`sample_16`](Self::sample_16).
+    single_16: Option<Box<Emitter<Pair>>>,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`) of any kind (a
@@ -610,6 +617,13 @@ impl Lights {
         if let Some(last) = lights.cdf.last_mut() {
             *last = 1.0;
         }
+        if let Some(e) = lights.single().filter(|_| lights.tree.is_none()).copied() {
+            lights.single_8 = Some(Box::new(Emitter::splat(&e)));
+            if lights.has_rectangles && !lights.mixed {
+                let e = Emitter::from_floats(e.floats().map(Pair::splat));
+                lights.single_16 = Some(Box::new(e));
+            }
+        }
         lights
     }
 
@@ -712,6 +726,10 @@ impl Lights {
     /// lane (the same bits).
     #[inline(always)]
     pub fn sample_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
+        if let Some(e) = &self.single_8 {
+            // `pick_8`'s answer for one emitter, without the splat.
+            return self.point_on(e, o, u);
+        }
         if !self.has_extras() {
             let (emitters, u0) = match &self.tree {
                 None => self.pick_8(u[0], lanes),
@@ -744,6 +762,36 @@ impl Lights {
             prim: lane(&|p| p.prim),
             delta: lane(&|p| p.delta),
         }
+    }
+
+    /// [`sample_8`](Self::sample_8) for two groups of eight lanes at once
+    /// (`o[k]`, `u[k]` and `lanes[k]` are group `k`'s): where the scene's
+    /// one emitter is a rectangle, both groups' points are computed side by
+    /// side as one [`Pair`] (each operation on the two groups back to back,
+    /// so that the long chains of divisions, square roots and arc cosines
+    /// of the one overlap those of the other); else group by group. The
+    /// same bits as two calls of [`sample_8`](Self::sample_8).
+    #[inline(always)]
+    pub fn sample_16(
+        &self,
+        o: [V3<f32x8>; 2],
+        u: [[f32x8; 2]; 2],
+        lanes: [usize; 2],
+    ) -> [LightPoint<f32x8>; 2] {
+        let Some(e) = &self.single_16 else {
+            return [
+                self.sample_8(o[0], u[0], lanes[0]),
+                self.sample_8(o[1], u[1], lanes[1]),
+            ];
+        };
+        let pair = |a: f32x8, b: f32x8| Pair([a, b]);
+        let o2 = V3::new(
+            pair(o[0].x, o[1].x),
+            pair(o[0].y, o[1].y),
+            pair(o[0].z, o[1].z),
+        );
+        let u2 = [pair(u[0][0], u[1][0]), pair(u[0][1], u[1][1])];
+        self.point_on(e, o2, u2).halves()
     }
 
     /// The emitter of a one-emitter scene, if it has exactly one.
@@ -992,6 +1040,130 @@ impl Lights {
         } else {
             by_area
         }
+    }
+}
+
+/// Sixteen lanes as two groups of eight side by side: each operation is
+/// [`f32x8`]'s on the first group, then on the second. Each lane computes
+/// what it would as an `f32x8` lane (and so as an `f32`), bit for bit; the
+/// point is the order of the instructions, which puts two independent
+/// dependency chains next to each other for the processor to overlap
+/// ([`Lights::sample_16`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pair(pub [f32x8; 2]);
+
+macro_rules! pair_binop {
+    ($tr:ident, $f:ident) => {
+        impl std::ops::$tr for Pair {
+            type Output = Self;
+            #[inline(always)]
+            fn $f(self, o: Self) -> Self {
+                let ([a, b], [c, d]) = (self.0, o.0);
+                Pair([std::ops::$tr::$f(a, c), std::ops::$tr::$f(b, d)])
+            }
+        }
+    };
+}
+pair_binop!(Add, add);
+pair_binop!(Sub, sub);
+pair_binop!(Mul, mul);
+pair_binop!(Div, div);
+pair_binop!(BitAnd, bitand);
+pair_binop!(BitOr, bitor);
+
+impl std::ops::Neg for Pair {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Pair(self.0.map(|a| -a))
+    }
+}
+
+impl Pair {
+    /// `f` on each group.
+    #[inline(always)]
+    fn each(self, f: impl Fn(f32x8) -> f32x8) -> Self {
+        let [a, b] = self.0;
+        Pair([f(a), f(b)])
+    }
+
+    /// `f` on each group of `self` and `o`.
+    #[inline(always)]
+    fn each2(self, o: Self, f: impl Fn(f32x8, f32x8) -> f32x8) -> Self {
+        let ([a, b], [c, d]) = (self.0, o.0);
+        Pair([f(a, c), f(b, d)])
+    }
+}
+
+impl Real for Pair {
+    /// Per group, [`f32x8`]'s mask.
+    type Mask = Pair;
+    type Id = [u32; 16];
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Pair([f32x8::splat(x); 2])
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        let ([x, y], [a0, a1], [b0, b1]) = (self.0, a.0, b.0);
+        Pair([Real::mul_add(x, a0, b0), Real::mul_add(y, a1, b1)])
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        self.each(Real::sqrt)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        self.each(Real::abs)
+    }
+    #[inline(always)]
+    fn round_ties_even(self) -> Self {
+        self.each(Real::round_ties_even)
+    }
+    #[inline(always)]
+    fn lt(self, rhs: Self) -> Pair {
+        self.each2(rhs, Real::lt)
+    }
+    #[inline(always)]
+    fn le(self, rhs: Self) -> Pair {
+        self.each2(rhs, Real::le)
+    }
+    #[inline(always)]
+    fn eq(self, rhs: Self) -> Pair {
+        self.each2(rhs, Real::eq)
+    }
+    #[inline(always)]
+    fn ne(self, rhs: Self) -> Pair {
+        self.each2(rhs, Real::ne)
+    }
+    #[inline(always)]
+    fn select(mask: Pair, a: Self, b: Self) -> Self {
+        let ([m0, m1], [a0, a1], [b0, b1]) = (mask.0, a.0, b.0);
+        Pair([
+            <f32x8 as Real>::select(m0, a0, b0),
+            <f32x8 as Real>::select(m1, a1, b1),
+        ])
+    }
+}
+
+impl LightPoint<Pair> {
+    /// The two groups' points.
+    #[inline(always)]
+    fn halves(self) -> [LightPoint<f32x8>; 2] {
+        let half = |k: usize| {
+            let v = |v: V3<Pair>| V3::new(v.x.0[k], v.y.0[k], v.z.0[k]);
+            LightPoint {
+                point: v(self.point),
+                normal: v(self.normal),
+                emission: v(self.emission),
+                pdf_area: self.pdf_area.0[k],
+                pdf_solid_angle: self.pdf_solid_angle.0[k],
+                scale: self.scale.0[k],
+                prim: self.prim.0[k],
+                delta: self.delta.0[k],
+            }
+        };
+        [half(0), half(1)]
     }
 }
 
@@ -1350,6 +1522,54 @@ mod tests {
                     assert_eq!(p.pdf_solid_angle.to_bits(), lane(p8.pdf_solid_angle));
                 }
             }
+        }
+    }
+
+    /// Sixteen lanes side by side ([`Lights::sample_16`]: one rectangle,
+    /// as a [`Pair`]; else two groups of eight) sample the points one lane
+    /// does, bit for bit, in both groups, however many lanes the second
+    /// has.
+    #[test]
+    fn sixteen_lanes_sample_the_points_one_lane_does() {
+        for (scene, paired) in [(Scene::cornell(), true), (cornell_two_lights(3.0), false)] {
+            let lights = Lights::new(&scene);
+            assert_eq!(lights.single_16.is_some(), paired);
+            let mut rng = PathRng::new(16, 16, 16);
+            let mut mismatches = 0;
+            for round in 0..1000 {
+                let u: [[f32; 2]; 16] = std::array::from_fn(|_| [rng.next_f32(), rng.next_f32()]);
+                let o: [Vec3; 16] = std::array::from_fn(|_| {
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0
+                });
+                let col = |k: usize, f: &dyn Fn(usize) -> f32| {
+                    f32x8::from(std::array::from_fn::<f32, 8, _>(|l| f(8 * k + l)))
+                };
+                let o8 = |k| {
+                    V3::new(
+                        col(k, &|l| o[l].x),
+                        col(k, &|l| o[l].y),
+                        col(k, &|l| o[l].z),
+                    )
+                };
+                let u8 = |k| [col(k, &|l| u[l][0]), col(k, &|l| u[l][1])];
+                let lanes = [8, 1 + round % 8];
+                let p16 = lights.sample_16([o8(0), o8(1)], [u8(0), u8(1)], lanes);
+                for l in 0..8 + lanes[1] {
+                    let p = lights.sample(V3::from(o[l]), u[l]).unwrap();
+                    let q = &p16[l / 8];
+                    let lane = |v: f32x8| v.to_array()[l % 8].to_bits();
+                    let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+                    let lane3 = |v: V3<f32x8>| [lane(v.x), lane(v.y), lane(v.z)];
+                    let same = bits(p.point) == lane3(q.point)
+                        && bits(p.normal) == lane3(q.normal)
+                        && bits(p.emission) == lane3(q.emission)
+                        && p.pdf_area.to_bits() == lane(q.pdf_area)
+                        && p.pdf_solid_angle.to_bits() == lane(q.pdf_solid_angle)
+                        && p.prim.to_bits() == lane(q.prim);
+                    mismatches += usize::from(!same);
+                }
+            }
+            assert_eq!(mismatches, 0, "lanes that differ from one lane's point");
         }
     }
 

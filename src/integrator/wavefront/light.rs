@@ -9,6 +9,7 @@ use crate::integrator::bsdf::is_delta;
 use crate::integrator::lights::LightPoint;
 use crate::integrator::nee::{connect, connect_shaded};
 use crate::integrator::sampler::Sampler;
+use crate::integrator::surface::SurfaceHit;
 use crate::integrator::tables::Tables;
 use crate::math::V3;
 use crate::scene::Model;
@@ -34,9 +35,16 @@ pub fn sample_lights<S: Sampler>(
             continue;
         }
         let (model, rows) = (*model, rows.clone());
-        for i in rows.clone().step_by(8) {
-            let lanes = (rows.end - i).min(8);
-            sample_lights_8(queue, i..i + lanes, model, ctx, shadows);
+        // Sixteen paths at a time (two groups of eight whose light points
+        // are computed side by side, `Lights::sample_16`), then the rest.
+        let mut i = rows.start;
+        while rows.end - i > 8 {
+            let lanes = (rows.end - i - 8).min(8);
+            sample_lights_16(queue, i, lanes, model, ctx, shadows);
+            i += 8 + lanes;
+        }
+        if i < rows.end {
+            sample_lights_8(queue, i..rows.end, model, ctx, shadows);
         }
     }
 }
@@ -51,11 +59,56 @@ fn sample_lights_8<S: Sampler>(
     ctx: &Ctx<S>,
     shadows: &mut ShadowQueue,
 ) {
+    let v = vertices_8(queue, rows.clone(), ctx);
+    let light = ctx.lights.sample_8(v.hit.p, v.u, rows.len());
+    connect_8(&v, light, rows, model, ctx, shadows);
+}
+
+/// [`sample_lights`] for the 8 paths from row `i` and the `lanes` (at
+/// most 8) after them, at surfaces of model `model`: the two groups' light
+/// points side by side ([`Lights::sample_16`](crate::integrator::lights::Lights::sample_16)),
+/// the same bits as two [`sample_lights_8`].
+#[inline(always)]
+fn sample_lights_16<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    i: usize,
+    lanes: usize,
+    model: Model,
+    ctx: &Ctx<S>,
+    shadows: &mut ShadowQueue,
+) {
+    let rows = [i..i + 8, i + 8..i + 8 + lanes];
+    let a = vertices_8(queue, rows[0].clone(), ctx);
+    let b = vertices_8(queue, rows[1].clone(), ctx);
+    let [la, lb] = (ctx.lights).sample_16([a.hit.p, b.hit.p], [a.u, b.u], [8, lanes]);
+    let [ra, rb] = rows;
+    connect_8(&a, la, ra, model, ctx, shadows);
+    connect_8(&b, lb, rb, model, ctx, shadows);
+}
+
+/// Eight path vertices, as the light stage needs them.
+struct Vertices8 {
+    /// Each lane's light-sampling numbers.
+    u: [f32x8; 2],
+    /// Each lane's primitive (lanes past the last path: the first's).
+    tris: [usize; 8],
+    /// The incoming direction.
+    d: V3<f32x8>,
+    /// The hit points.
+    hit: SurfaceHit<f32x8>,
+}
+
+/// The light-sampling numbers and hit points of the (at most 8) paths of
+/// rows `rows` (lanes past the last path are for nothing: no shadow ray
+/// is queued for them).
+#[inline(always)]
+fn vertices_8<S: Sampler>(
+    queue: &mut PathQueue<S::Path>,
+    rows: Range<usize>,
+    ctx: &Ctx<S>,
+) -> Vertices8 {
     let (i, lanes) = (rows.start, rows.len());
-    let (tables, lights) = (ctx.tables, ctx.lights);
-    // Each lane's emitter and point on it (lanes past the last path are
-    // for nothing: no shadow ray is queued for them).
-    let [u0, u1] = ctx
+    let u = ctx
         .est
         .light_numbers_8(ctx.sampler, &mut queue.sampler[rows]);
     let mut tris = [queue.hit[i] as usize; 8];
@@ -65,12 +118,28 @@ fn sample_lights_8<S: Sampler>(
     let load3 =
         |cols: &[Vec<f32>; 3]| V3::new(load8(&cols[0], i), load8(&cols[1], i), load8(&cols[2], i));
     let (o, d, t) = (load3(&queue.o), load3(&queue.d), load8(&queue.t, i));
-    let s = tables.surface_8(&tris, (o, d), t);
-    let mut light = lights.sample_8(s.p, [u0, u1], lanes);
+    let hit = ctx.tables.surface_8(&tris, (o, d), t);
+    Vertices8 { u, tris, d, hit }
+}
+
+/// The shadow rays from the vertices `v` (rows `rows`, at surfaces of
+/// model `model`) to the points `light`, queued where they may carry
+/// light.
+#[inline(always)]
+fn connect_8<S: Sampler>(
+    v: &Vertices8,
+    mut light: LightPoint<f32x8>,
+    rows: Range<usize>,
+    model: Model,
+    ctx: &Ctx<S>,
+    shadows: &mut ShadowQueue,
+) {
+    let (i, lanes) = (rows.start, rows.len());
+    let (tables, s, d) = (ctx.tables, &v.hit, v.d);
     if tables.has_emissive_maps() {
         textured_emission_8(tables, &mut light, lanes);
     }
-    let surface = tables.surfaces_at(model, &tris, &s);
+    let surface = tables.surfaces_at(model, &v.tris, s);
     let (valid, ray) = if tables.has_smooth() {
         connect_shaded(&light, s.err, (s.p, s.n, s.ns, -d), s.front, &surface)
     } else {

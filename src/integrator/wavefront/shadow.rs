@@ -7,7 +7,7 @@ use crate::accel::bvh::Bvh;
 use crate::accel::simd::Lanes;
 use crate::integrator::nee::ShadowRay;
 use crate::integrator::tables::Tables;
-use wide::f32x8;
+use wide::{f32x8, u32x8};
 
 /// Shadow rays, in columns (so that the hierarchy tests them 8 or 16 at a
 /// time in a scene of ray packets), and the queue rows of the paths they
@@ -65,12 +65,14 @@ impl ShadowQueue {
         }
         // Column by column, written out: an array of the ten vectors,
         // iterated, was copied through the stack in overlapping pieces
-        // (stalled stores, a fifth of the light stage).
+        // (stalled stores, a fifth of the light stage). Each column's set
+        // lanes are packed low by one permutation (`vpermd` on AVX2) and
+        // stored as a whole vector, rather than lane by lane.
+        let index = u32x8::from(lane) & u32x8::splat(7);
         let put = |c: &mut Vec<f32>, v: f32x8| {
-            let v = v.to_array();
-            for (c, &l) in c[start..end].iter_mut().zip(&lane) {
-                *c = v[l as usize & 7];
-            }
+            let packed =
+                bytemuck::cast::<u32x8, [f32; 8]>(bytemuck::cast::<f32x8, u32x8>(v).shuffle(index));
+            c[start..end].copy_from_slice(&packed);
         };
         let (o, d, r) = (&rays.origin, &rays.dir, &rays.radiance);
         put(&mut self.origin[0], o.x);
