@@ -108,10 +108,7 @@ impl Estimator {
     /// lane.
     #[inline]
     pub fn light_numbers_8<S: Sampler>(&self, sampler: &S, paths: &mut [S::Path]) -> [f32x8; 2] {
-        for p in paths.iter_mut() {
-            sampler.skip(p, 1);
-        }
-        sampler.next_2d_8(paths)
+        sampler.skip_next_2d_8(paths, 1)
     }
 
     /// [`bsdf_numbers`](Self::bsdf_numbers) of up to eight paths, one per

@@ -66,6 +66,17 @@ pub trait Sampler: Send + Sync {
         [f32x8::from(a), f32x8::from(b)]
     }
 
+    /// Skip `n` dimensions of each of up to eight paths, then
+    /// [`next_2d_8`](Sampler::next_2d_8): the same numbers, in one pass
+    /// over the paths where the sampler can.
+    #[inline]
+    fn skip_next_2d_8(&self, paths: &mut [Self::Path], n: u32) -> [f32x8; 2] {
+        for p in paths.iter_mut() {
+            self.skip(p, n);
+        }
+        self.next_2d_8(paths)
+    }
+
     /// The path's numbers at its next two dimensions.
     #[inline]
     fn next_2d(&self, path: &mut Self::Path) -> [f32; 2] {

@@ -444,25 +444,61 @@ fn next_lanes(paths: &mut [SobolPath]) -> f32x8 {
 /// Eight paths' numbers at their next two dimensions.
 #[inline]
 fn next_2d_lanes(paths: &mut [SobolPath]) -> [f32x8; 2] {
-    if paths.iter().any(|p| p.dim % GROUP != 0) {
+    next_2d_lanes_after(paths, 0)
+}
+
+/// Eight paths' numbers at their next two dimensions after skipping
+/// `skip`: one pass over the paths (their keys, indices and dimensions
+/// read once, the dimensions stepped once), where [`Sampler::skip`] then
+/// [`next_2d_lanes`] took three.
+#[inline]
+fn next_2d_lanes_after(paths: &mut [SobolPath], skip: u32) -> [f32x8; 2] {
+    let (key, reversed, dim) = lanes_of(paths);
+    let dim = dim + u32x8::splat(skip);
+    if !(dim & u32x8::splat(1)).simd_eq(u32x8::ZERO).all() {
         // Straddling a group: two single draws.
+        for p in paths.iter_mut() {
+            p.dim = p.dim.wrapping_add(skip);
+        }
         return [next_lanes(paths), next_lanes(paths)];
     }
-    let (key, reversed, dim) = lanes_of(paths);
     let pair = reversed_pair_lanes(key, reversed, dim >> 1);
+    let step = skip.wrapping_add(2);
     for p in paths.iter_mut() {
-        p.dim = p.dim.wrapping_add(2);
+        p.dim = p.dim.wrapping_add(step);
     }
     pair.map(|z| reverse_lanes(z).to_unit())
 }
 
 /// The keys, reversed indices and dimensions of up to eight paths (lanes
-/// past the last repeat the first).
+/// past the last repeat the first). Eight paths are four vectors of two
+/// paths each, transposed by permutations and blends.
 #[inline(always)]
 fn lanes_of(paths: &[SobolPath]) -> (u32x8, u32x8, u32x8) {
-    let p = |l: usize| paths.get(l).unwrap_or(&paths[0]);
-    let f = |g: fn(&SobolPath) -> u32| u32x8::from(std::array::from_fn::<u32, 8, _>(|l| g(p(l))));
-    (f(|p| p.key), f(|p| p.reversed_sample), f(|p| p.dim))
+    let Ok(eight) = <&[SobolPath; 8]>::try_from(paths) else {
+        let p = |l: usize| paths.get(l).unwrap_or(&paths[0]);
+        let f =
+            |g: fn(&SobolPath) -> u32| u32x8::from(std::array::from_fn::<u32, 8, _>(|l| g(p(l))));
+        return (f(|p| p.key), f(|p| p.reversed_sample), f(|p| p.dim));
+    };
+    let words: &[[u32; 8]; 4] = bytemuck::cast_ref(eight);
+    let v = words.map(u32x8::from);
+    // Field `f` of path `2k` is lane `f` of `v[k]`, of path `2k + 1` lane
+    // `4 + f`: each `v[k]` permuted to have them at lanes `2k` and
+    // `2k + 1`, then the four blended.
+    let pairs = |k: usize| {
+        u32x8::from(std::array::from_fn::<u32, 8, _>(|l| {
+            if l / 2 == k { u32::MAX } else { 0 }
+        }))
+    };
+    let (m0, m1, m2) = (pairs(0), pairs(1), pairs(2));
+    let column = |f: u32| {
+        let index = u32x8::from([f, 4 + f, f, 4 + f, f, 4 + f, f, 4 + f]);
+        let [a, b, c, d] = v.map(|v| v.shuffle(index));
+        m0.select(a, m1.select(b, m2.select(c, d)))
+    };
+    // SobolPath's fields: pixel, reversed_sample, dim, key.
+    (column(3), column(1), column(2))
 }
 
 /// A bit-reversed 32-bit fraction's top 24 bits as an `f32` in `[0, 1)`:
@@ -593,6 +629,11 @@ impl Sampler for Sobol {
     #[inline]
     fn next_2d_8(&self, paths: &mut [SobolPath]) -> [f32x8; 2] {
         next_2d_lanes(paths)
+    }
+
+    #[inline]
+    fn skip_next_2d_8(&self, paths: &mut [SobolPath], n: u32) -> [f32x8; 2] {
+        next_2d_lanes_after(paths, n)
     }
 
     /// Both coordinates of one point when the path is at an even
@@ -752,7 +793,8 @@ mod tests {
     #[test]
     fn eight_lanes_draw_the_numbers_one_lane_draws() {
         // Paths at mixed dimensions (even, odd, straddling), every count of
-        // lanes: next_8 / next_2d_8 give each path its own next numbers.
+        // lanes: next_8 / next_2d_8 / skip_next_2d_8 give each path its own
+        // next numbers.
         let sobol = Sobol::new(17);
         for lanes in 1..=8 {
             for start_dims in [[0u32; 8], [1; 8], [0, 1, 2, 3, 4, 5, 6, 7], [4998; 8]] {
@@ -764,13 +806,18 @@ mod tests {
                     })
                     .collect();
                 let mut one = paths.clone();
-                for _ in 0..5 {
+                for skip in 0..5 {
                     let x = sobol.next_8(&mut paths).to_array();
                     let [a, b] = sobol.next_2d_8(&mut paths).map(|v| v.to_array());
+                    // Skipping `skip` dimensions first, in the same pass.
+                    let [e, f] = sobol.skip_next_2d_8(&mut paths, skip).map(|v| v.to_array());
                     for (l, p) in one.iter_mut().enumerate() {
                         assert_eq!(x[l].to_bits(), sobol.next(p).to_bits());
                         let [c, d] = sobol.next_2d(p);
                         assert_eq!([a[l], b[l]].map(f32::to_bits), [c, d].map(f32::to_bits));
+                        sobol.skip(p, skip);
+                        let [g, h] = sobol.next_2d(p);
+                        assert_eq!([e[l], f[l]].map(f32::to_bits), [g, h].map(f32::to_bits));
                     }
                 }
                 assert_eq!(paths, one);
