@@ -1315,6 +1315,33 @@ fn stats_count_meshes_instances_triangles_and_textures() {
     ] {
         assert_eq!(json[field], want, "{field} in {text}");
     }
+    // The texture lookups' time: some, and part of the stages' (inside
+    // light, bounce and shade).
+    let textures = json["texture_seconds"].as_f64().unwrap();
+    let inside: f64 = ["light", "bounce", "shade"]
+        .iter()
+        .map(|s| json["engine_stages"][s].as_f64().unwrap())
+        .sum();
+    assert!(
+        textures > 0.0 && textures <= inside,
+        "{textures} of {inside} in {text}"
+    );
+    // None without textures.
+    let mut g = Gltf::default();
+    let m = g.material(Mat::default());
+    let cube = g.cube(0.5, m);
+    g.node(cube, Vec3::ZERO, Quat::IDENTITY);
+    std::fs::write(dir.join("plain.glb"), g.glb()).unwrap();
+    common::run_ok(
+        &dir,
+        &["render", "plain.glb", "--width", "8", "--height", "6"]
+            .into_iter()
+            .chain(["--spp", "1", "-o", "p.png", "--stats", "p.json"])
+            .collect::<Vec<_>>(),
+    );
+    let text = std::fs::read_to_string(dir.join("p.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["texture_seconds"], 0.0, "{text}");
 }
 
 // ---------------------------------------------------------------------------

@@ -144,7 +144,10 @@ fn stages_table(r: &BenchReport) -> String {
                 Some(format!("{} {:.0}%", stage.name(), x * 100.0))
             })
             .collect();
-        s += &format!("{:<16} {}\n", w.name, shares.join("  "));
+        let textures = (t.stages.get(crate::run::bench::TEXTURES))
+            .map(|x| format!("  (textures {:.0}% of it)", x * 100.0))
+            .unwrap_or_default();
+        s += &format!("{:<16} {}{textures}\n", w.name, shares.join("  "));
     }
     s
 }

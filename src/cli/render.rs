@@ -813,6 +813,7 @@ pub fn run(args: RenderArgs) -> Result<ExitCode> {
         invalid_samples: film.invalid_samples,
         stages,
         engine_stages: counters.stages.by_name(),
+        texture_seconds: counters.stages.textures(),
         checkpoint: job
             .session
             .checkpoint

@@ -92,6 +92,10 @@ pub struct RenderStats {
     /// the threads and the passes), by stage name. Empty for engines that do not time their
     /// stages (the reference tracer).
     pub engine_stages: BTreeMap<&'static str, f64>,
+    /// Of those CPU-seconds, the ones spent looking textures up and making
+    /// the material parameters they give (inside the *light*, *bounce* and
+    /// *shade* stages: not a stage of its own; 0 without textures).
+    pub texture_seconds: f64,
     /// The checkpoint file, if any.
     pub checkpoint: Option<String>,
     /// Checkpoints saved by this run, the last one included.

@@ -148,9 +148,13 @@ impl Stage {
     }
 }
 
-/// Seconds spent in each wavefront stage, summed over threads.
+/// Seconds spent in each wavefront stage, summed over threads; and, of
+/// those, the seconds spent looking textures up ([`texture::timed`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct StageSeconds([f64; Stage::ALL.len()]);
+pub struct StageSeconds {
+    stages: [f64; Stage::ALL.len()],
+    textures: f64,
+}
 
 impl StageSeconds {
     /// Run `f` as (part of) stage `stage`, adding its wall-clock time.
@@ -158,19 +162,32 @@ impl StageSeconds {
     pub fn time<T>(&mut self, stage: Stage, f: impl FnOnce() -> T) -> T {
         let start = std::time::Instant::now();
         let out = f();
-        self.0[stage as usize] += start.elapsed().as_secs_f64();
+        self.stages[stage as usize] += start.elapsed().as_secs_f64();
         out
     }
 
     /// The seconds of one stage.
     pub fn of(&self, stage: Stage) -> f64 {
-        self.0[stage as usize]
+        self.stages[stage as usize]
+    }
+
+    /// Of the stages' seconds, those spent in texture lookups and the
+    /// material parameters they make (inside *light*, *bounce* and
+    /// *shade*: not a stage of its own).
+    pub fn textures(&self) -> f64 {
+        self.textures
+    }
+
+    /// Add `seconds` of texture lookups (already inside the stages' time).
+    pub fn add_textures(&mut self, seconds: f64) {
+        self.textures += seconds;
     }
 
     /// The stages by name, for the stats file; empty when nothing was
-    /// timed (the reference engine has no stages).
+    /// timed (the reference engine has no stages). The texture lookups'
+    /// share of them is [`textures`](Self::textures), apart.
     pub fn by_name(&self) -> std::collections::BTreeMap<&'static str, f64> {
-        if self.0.iter().all(|s| *s == 0.0) {
+        if self.stages.iter().all(|s| *s == 0.0) {
             return Default::default();
         }
         Stage::ALL.iter().map(|s| (s.name(), self.of(*s))).collect()
@@ -179,9 +196,10 @@ impl StageSeconds {
 
 impl std::ops::AddAssign for StageSeconds {
     fn add_assign(&mut self, o: Self) {
-        for (a, b) in self.0.iter_mut().zip(o.0) {
+        for (a, b) in self.stages.iter_mut().zip(o.stages) {
             *a += b;
         }
+        self.textures += o.textures;
     }
 }
 

@@ -374,7 +374,12 @@ impl Tables {
             return front;
         }
         let (f, p) = (lanes3(front), lanes3(p));
-        replace_lanes(front, |l| self.shading_normal(prims[l], f[l], p[l]))
+        let normals = || replace_lanes(front, |l| self.shading_normal(prims[l], f[l], p[l]));
+        if self.normal_maps {
+            crate::integrator::texture::timed(normals)
+        } else {
+            normals()
+        }
     }
 
     /// The front shading normal of primitive `prim` at its point `p`, for
@@ -719,9 +724,11 @@ impl Tables {
         }
         let p = lanes3(hit.p);
         let uv = hit.uv.map(|set| set.map(|c| c.to_array()));
-        Surface::lanes(model, |l| {
-            let uv = uv.map(|set| set.map(|c| c[l]));
-            self.scattering_at(tris[l], hit.material[l], uv, p[l])
+        crate::integrator::texture::timed(|| {
+            Surface::lanes(model, |l| {
+                let uv = uv.map(|set| set.map(|c| c[l]));
+                self.scattering_at(tris[l], hit.material[l], uv, p[l])
+            })
         })
     }
 

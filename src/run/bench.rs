@@ -956,8 +956,13 @@ pub fn stage_shares(stages: &StageSeconds) -> std::collections::BTreeMap<String,
     }
     (Stage::ALL.iter())
         .map(|s| (s.name().to_string(), stages.of(*s) / total))
+        .chain((stages.textures() > 0.0).then(|| (TEXTURES.to_string(), stages.textures() / total)))
         .collect()
 }
+
+/// The name, among [`stage_shares`], of the texture lookups' share: part
+/// of the stages' time (inside *light*, *bounce* and *shade*), not a stage.
+pub const TEXTURES: &str = "textures";
 
 /// The overall scores of `results` (every workload run at the same thread
 /// counts).

@@ -123,6 +123,9 @@ pub struct AssetReport {
     /// (zero for the reference engine).
     #[serde(serialize_with = "stage_map")]
     pub stages: StageSeconds,
+    /// Of those, the seconds spent looking textures up (and making the
+    /// material parameters they give): [`StageSeconds::textures`].
+    pub texture_seconds: f64,
     /// Why it failed, if it did (its views are then not rendered).
     pub error: Option<String>,
 }
@@ -587,6 +590,7 @@ impl AssetWork<'_> {
             report.write_seconds += done.write_seconds;
             report.rays += done.rays;
             report.stages += done.stages;
+            report.texture_seconds = report.stages.textures();
             observe(ViewsEvent::View {
                 asset: &report.name,
                 view: i,

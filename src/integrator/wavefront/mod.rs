@@ -206,5 +206,6 @@ impl WavefrontEngine {
             }
             time.time(Stage::Bounce, || bounce::bounce(queue, &bins, &ctx));
         }
+        time.add_textures(crate::integrator::texture::take_seconds());
     }
 }
