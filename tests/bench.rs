@@ -104,6 +104,13 @@ fn bench_json_and_compare() {
         let sum: f64 = shares.values().map(|x| x.as_f64().unwrap()).sum();
         assert!(shares.len() == 8 && (sum - 1.0).abs() < 1e-9, "{w}");
     }
+    // The textured asset's texture lookups: a share of those stages.
+    let textures = json["workloads"][3]["runs"][1]["texture_share"]
+        .as_f64()
+        .unwrap();
+    assert!(textures > 0.0 && textures < 1.0, "{textures}");
+    assert_eq!(json["workloads"][0]["runs"][1]["texture_share"], 0.0);
+    assert!(out.contains("% of it)"), "{out}");
     assert!(json["machine"]["cores"].as_u64().unwrap() >= 1);
     assert!(!json["build"]["version"].as_str().unwrap().is_empty());
     assert!(json["scores"]["single_thread_mpaths"].as_f64().unwrap() > 0.0);

@@ -144,9 +144,11 @@ fn stages_table(r: &BenchReport) -> String {
                 Some(format!("{} {:.0}%", stage.name(), x * 100.0))
             })
             .collect();
-        let textures = (t.stages.get(crate::run::bench::TEXTURES))
-            .map(|x| format!("  (textures {:.0}% of it)", x * 100.0))
-            .unwrap_or_default();
+        let textures = if t.texture_share > 0.0 {
+            format!("  (textures {:.0}% of it)", t.texture_share * 100.0)
+        } else {
+            String::new()
+        };
         s += &format!("{:<16} {}{textures}\n", w.name, shares.join("  "));
     }
     s

@@ -633,6 +633,10 @@ pub struct ThreadResult {
     /// their time, over the repeats (empty for a report from before).
     #[serde(default)]
     pub stages: std::collections::BTreeMap<String, f64>,
+    /// Of that time, the share spent looking textures up (inside *light*,
+    /// *bounce* and *shade*; 0 without textures or in a report from before).
+    #[serde(default)]
+    pub texture_share: f64,
 }
 
 impl ThreadResult {
@@ -911,6 +915,7 @@ pub fn run_suite(
                 efficiency: speedup.map(|s| s / t as f64),
                 others_cpu,
                 stages: stage_shares(&stages),
+                texture_share: texture_share(&stages),
             });
         }
         let verified = expected.is_some_and(|e| hashes.len() == 1 && hashes[0] == e);
@@ -956,13 +961,19 @@ pub fn stage_shares(stages: &StageSeconds) -> std::collections::BTreeMap<String,
     }
     (Stage::ALL.iter())
         .map(|s| (s.name().to_string(), stages.of(*s) / total))
-        .chain((stages.textures() > 0.0).then(|| (TEXTURES.to_string(), stages.textures() / total)))
         .collect()
 }
 
-/// The name, among [`stage_shares`], of the texture lookups' share: part
-/// of the stages' time (inside *light*, *bounce* and *shade*), not a stage.
-pub const TEXTURES: &str = "textures";
+/// The texture lookups' share of the stages' time
+/// ([`StageSeconds::textures`]; 0 when nothing was timed).
+pub fn texture_share(stages: &StageSeconds) -> f64 {
+    let total: f64 = Stage::ALL.iter().map(|s| stages.of(*s)).sum();
+    if total > 0.0 {
+        stages.textures() / total
+    } else {
+        0.0
+    }
+}
 
 /// The overall scores of `results` (every workload run at the same thread
 /// counts).
