@@ -127,6 +127,25 @@ def cycles(a, asset, transforms, spp, seed, out, adaptive=False):
     return images, report["load_seconds"] + sum(report["render_seconds"]), seconds
 
 
+def reference(a, name, folder, kind, render):
+    """An asset's converged images (and wavetrace's camera file): rendered
+    by `render`, or, with --reuse-references, loaded from `folder` where an
+    earlier run with the same settings left them (its settings are checked)."""
+    stamp = folder / "settings.json"
+    settings = {"size": a.size, "views": a.views, "ref_spp": a.ref_spp, "kind": kind}
+    if a.reuse_references and stamp.exists() and json.loads(stamp.read_text()) == settings:
+        print(f"{name}: reusing {folder}", file=sys.stderr)
+        if kind == "wt":
+            sub = next(p for p in folder.iterdir() if p.is_dir())
+            digits = len(str(a.views - 1))
+            images = [load_exr(sub / f"{i:0{digits}d}.exr") for i in range(a.views)]
+            return images, sub / "transforms.json"
+        return [load_exr(folder / f"{i:04d}.exr") for i in range(a.views)], None
+    result = render()
+    stamp.write_text(json.dumps(settings))
+    return result[0], result[2]
+
+
 def time_at(points, target):
     """Time per image at relMSE `target`, from (relmse, seconds) points:
     log-log interpolation between the two nearest, else 1/t extrapolation."""
@@ -148,6 +167,9 @@ def main():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--ref-spp", type=int, default=1024)
     p.add_argument("--spp", default="4,16,64")
+    p.add_argument("--reuse-references", action="store_true",
+                   help="load the references an earlier run with the same settings left in --out "
+                        "(rendered afresh where missing): time the renders later, on a quiet machine")
     p.add_argument("--adaptive", action="store_true",
                    help="Cycles' adaptive sampling on (not for the references)")
     a = p.parse_args()
@@ -157,8 +179,10 @@ def main():
     for asset in [x for x in ASSETS if x.exists()]:
         name = asset.stem
         print(f"{name}: references at {a.ref_spp} spp", file=sys.stderr)
-        wt_ref, _, transforms = wavetrace(a, asset, a.ref_spp, 7, out / name / "wt-ref")
-        cy_ref, _, _ = cycles(a, asset, transforms, a.ref_spp, 7, out / name / "cy-ref")
+        wt_ref, transforms = reference(a, name, out / name / "wt-ref", "wt",
+                                       lambda: wavetrace(a, asset, a.ref_spp, 7, out / name / "wt-ref"))
+        cy_ref, _ = reference(a, name, out / name / "cy-ref", "cy",
+                              lambda: cycles(a, asset, transforms, a.ref_spp, 7, out / name / "cy-ref"))
         agree = []
         for v in range(a.views):
             w, c = wt_ref[v], cy_ref[v]
