@@ -27,6 +27,7 @@ It prints a table and writes `results.json` in `--out`.
 
 import argparse
 import json
+import shutil
 import math
 import os
 import subprocess
@@ -92,6 +93,8 @@ color = ["exr"]
 
 
 def wavetrace(a, asset, spp, seed, out):
+    # A fresh folder: `views` skips the views an earlier run finished there.
+    shutil.rmtree(out, ignore_errors=True)
     job = out.with_suffix(".toml")
     job.parent.mkdir(parents=True, exist_ok=True)
     job.write_text(job_text(asset, a, spp, seed))
@@ -110,6 +113,7 @@ def wavetrace(a, asset, spp, seed, out):
 
 
 def cycles(a, asset, transforms, spp, seed, out, adaptive=False):
+    shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
     r = subprocess.run(
