@@ -27,9 +27,9 @@ It prints a table and writes `results.json` in `--out`.
 
 import argparse
 import json
-import shutil
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
