@@ -642,6 +642,13 @@ impl Lights {
         self.environment.as_ref()
     }
 
+    /// The probability with which [`Lights::sample`] picks the
+    /// environment (0 without one).
+    #[inline]
+    pub fn environment_probability(&self) -> f32 {
+        self.environment_probability
+    }
+
     /// The density per unit solid angle with which [`Lights::sample`]
     /// draws the direction `d` from the environment (0 without one).
     #[inline]

@@ -244,7 +244,9 @@ pub const ESTIMATOR_VERSION: u32 = 1;
 /// A fingerprint of how this build computes samples: [`ESTIMATOR_VERSION`]
 /// and the bits of a few probes of the shared kernels — random draws,
 /// a scattered direction, `sin_cos_2pi`, a Möller–Trumbore hit, where a
-/// ray leaves a surface ([`offset`]), the film's fixed-point scale. A change to any of them changes every image's bits,
+/// ray leaves a surface ([`offset`]), the environment's angle
+/// ([`environment::atan2`]), the film's fixed-point scale. A change to any
+/// of them changes some image's bits,
 /// and so changes this fingerprint (and the settings hash that checkpoints
 /// and shards are checked against).
 pub fn estimator_fingerprint() -> u64 {
@@ -279,6 +281,7 @@ pub fn estimator_fingerprint() -> u64 {
     let p = V3::new(0.3f32, -0.2, 2.1);
     let from = offset::spawn(p, V3::new(0.0, 0.6, 0.8), d, offset::error_bound(o, p, 2.5));
     [from.x, from.y, from.z].into_iter().for_each(&mut put);
+    put(environment::atan2(0.3f32, -0.7));
     h.update(&crate::film::FIXED_POINT_SCALE.to_bits().to_le_bytes());
     h.update(&ESTIMATOR_VERSION.to_le_bytes());
     h.digest()

@@ -4,12 +4,16 @@ use super::Ctx;
 use super::queue::{NO_HIT, PathQueue, rows_where};
 use crate::integrator::aov::{Vertex, value};
 use crate::integrator::bsdf::is_delta;
+#[cfg(doc)]
+use crate::integrator::environment::EnvLight;
+use crate::integrator::lights::power_heuristic;
 use crate::integrator::nee::{emission_weight, escaped};
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
 use crate::math::V3;
 use crate::scene::aov::When;
 use glam::Vec3;
+use wide::f32x8;
 
 /// For every path whose ray hit a surface from its front side:
 /// radiance += throughput × emitted radiance × its MIS weight (1 unless
@@ -69,7 +73,9 @@ pub fn absorb<P>(queue: &mut PathQueue<P>, tables: &Tables) {
 /// For every path whose ray left the scene, in a scene with an
 /// environment: radiance += throughput × the environment's radiance ×
 /// its MIS weight ([`escaped`]); camera rays (depth `depth` 0) see it only
-/// where it is visible.
+/// where it is visible. The environment is looked up eight rays at a time
+/// ([`EnvLight::radiance_and_pdf_lanes`]: the scalar lookup's bits); the
+/// weights and the suns seen, as [`escaped`] computes them.
 pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, depth: u32) {
     let n = queue.len();
     let hit = &queue.hit[..n];
@@ -77,12 +83,66 @@ pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, d
     let [dx, dy, dz] = queue.d.each_ref().map(|c| &c[..n]);
     let beta = queue.beta.each_ref().map(|c| &c[..n]);
     let [lr, lg, lb] = queue.radiance.each_mut().map(|c| &mut c[..n]);
-    for i in rows_where(hit, |&h| h == NO_HIT) {
-        let d = V3::new(dx[i], dy[i], dz[i]);
-        if let Some(l) = escaped(ctx.est, ctx.lights, pdf[i], d, depth == 0) {
-            lr[i] += beta[0][i] * l.x;
-            lg[i] += beta[1][i] * l.y;
-            lb[i] += beta[2][i] * l.z;
+    let Some(env) = ctx.lights.environment() else {
+        // Suns only, if any.
+        for i in rows_where(hit, |&h| h == NO_HIT) {
+            let d = V3::new(dx[i], dy[i], dz[i]);
+            if let Some(l) = escaped(ctx.est, ctx.lights, pdf[i], d, depth == 0) {
+                lr[i] += beta[0][i] * l.x;
+                lg[i] += beta[1][i] * l.y;
+                lb[i] += beta[2][i] * l.z;
+            }
+        }
+        return;
+    };
+    if depth == 0 && !env.visible {
+        return;
+    }
+    let samples_lights = ctx.est.samples_lights();
+    let probability = ctx.lights.environment_probability();
+    let mut escaping = rows_where(hit, |&h| h == NO_HIT);
+    loop {
+        let mut rows = [0usize; 8];
+        let k = rows
+            .iter_mut()
+            .zip(&mut escaping)
+            .map(|(r, i)| *r = i)
+            .count();
+        if k == 0 {
+            return;
+        }
+        let gather = |c: &[f32]| f32x8::from(std::array::from_fn(|l| c[rows[l.min(k - 1)]]));
+        let d = V3::new(gather(dx), gather(dy), gather(dz));
+        let (radiance, env_pdf) = env.radiance_and_pdf_lanes(d, k);
+        let [rx, ry, rz, env_pdf] =
+            [radiance.x, radiance.y, radiance.z, env_pdf].map(|c| c.to_array());
+        for (l, &i) in rows[..k].iter().enumerate() {
+            // `escaped`, with the lookup done.
+            let (bsdf_pdf, d) = (pdf[i], V3::new(dx[i], dy[i], dz[i]));
+            let mis = samples_lights && bsdf_pdf != 0.0;
+            let light = V3::new(rx[l], ry[l], rz[l]);
+            let mut seen = if mis {
+                let p = if probability > 0.0 {
+                    probability * env_pdf[l]
+                } else {
+                    0.0
+                };
+                let w = power_heuristic(bsdf_pdf, p);
+                V3::new(light.x * w, light.y * w, light.z * w)
+            } else {
+                light
+            };
+            for (sun, p) in ctx.lights.suns_seen(d) {
+                let w = if mis {
+                    power_heuristic(bsdf_pdf, p)
+                } else {
+                    1.0
+                };
+                seen = sun.mul_add(w, seen);
+            }
+            lr[i] += beta[0][i] * seen.x;
+            lg[i] += beta[1][i] * seen.y;
+            lb[i] += beta[2][i] * seen.z;
         }
     }
 }
