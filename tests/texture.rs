@@ -325,7 +325,8 @@ fn png_and_jpeg_decode_and_hostile_images_are_refused() {
         .write_image(&pixels, 3, 2, image::ExtendedColorType::Rgba8)
         .unwrap();
     let t = Texture::decode(&png, ColourSpace::Linear).unwrap();
-    assert_eq!((t.width(), t.height(), t.bytes()), (3, 2, 24));
+    // Stored in one 4 × 4 tile: 16 texels of 4 bytes.
+    assert_eq!((t.width(), t.height(), t.bytes()), (3, 2, 64));
     // Texel (2, 1) holds bytes 20..24.
     let got = t.texel(2, 1);
     for (c, value) in got.into_iter().enumerate() {

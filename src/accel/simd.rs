@@ -10,8 +10,9 @@
 //! multiply-adds included, and the two give the same hits bit for bit.
 
 use crate::math::Real;
+use crate::scene::texture::TexelIndex;
 use std::fmt::Debug;
-use wide::{f32x4, f32x8, i32x8};
+use wide::{f32x4, f32x8, i32x8, u32x8};
 
 /// How many triangles (and, for nodes, boxes) the hot kernels test at once.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -105,7 +106,7 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     /// The number of lanes.
     const LANES: usize;
     /// One `i32` per lane.
-    type Index: Copy + Debug + Send + Sync;
+    type Index: Copy + Debug + Send + Sync + TexelIndex;
     /// The lanes from `a` (at most [`Lanes::LANES`] values; the rest are
     /// `fill`). Needs no particular instruction set.
     fn from_slice(a: &[f32], fill: f32) -> Self;
@@ -136,6 +137,37 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     fn write_to(self, out: &mut [f32]);
     /// The first `out.len()` integer lanes, as `u32`, into `out`.
     fn index_write_to(i: Self::Index, out: &mut [u32]);
+    /// `⌊x⌋` lane-wise, as [`f32::floor`].
+    fn floor(self) -> Self;
+    /// Each lane, an integer in `(−2³¹, 2³¹)`, as an integer lane.
+    fn to_index(self) -> Self::Index;
+    /// Each integer lane as a float, as `i32 as f32`.
+    fn index_to_float(i: Self::Index) -> Self;
+    /// `texels[at]` for each lane (a gather), `at` read as `u32` and
+    /// clamped to `texels.len() − 1`, so that no lane reads outside
+    /// `texels` (which must not be empty).
+    fn gather_texels(texels: &[u32], at: Self::Index) -> Self::Index;
+    /// `table[at & 255]` for each lane (a gather).
+    fn gather_table(table: &[f32; 256], at: Self::Index) -> Self;
+}
+
+impl TexelIndex for i32x8 {
+    #[inline(always)]
+    fn splat_index(k: i32) -> Self {
+        i32x8::splat(k)
+    }
+    #[inline(always)]
+    fn shr(self, k: u32) -> Self {
+        bytemuck::cast(bytemuck::cast::<i32x8, u32x8>(self) >> k)
+    }
+    #[inline(always)]
+    fn shl(self, k: u32) -> Self {
+        self << k
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self * o
+    }
 }
 
 /// For each 8-bit mask, the numbers of its set bits in increasing order
@@ -241,6 +273,60 @@ impl Lanes for f32x8 {
             Err(_) => out.copy_from_slice(&lanes[..out.len()]),
         }
     }
+    #[inline(always)]
+    fn floor(self) -> Self {
+        f32x8::floor(self)
+    }
+    #[inline(always)]
+    fn to_index(self) -> i32x8 {
+        self.fast_trunc_int()
+    }
+    #[inline(always)]
+    fn index_to_float(i: i32x8) -> Self {
+        f32x8::from_i32x8(i)
+    }
+    #[inline(always)]
+    fn gather_texels(texels: &[u32], at: i32x8) -> i32x8 {
+        let last = u32x8::splat(texels.len() as u32 - 1);
+        let at = bytemuck::cast::<i32x8, u32x8>(at).min(last);
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        {
+            use std::arch::x86_64::{__m256i, _mm256_i32gather_epi32};
+            // SAFETY: AVX2 is enabled at compile time (the `cfg` above);
+            // every lane of `at` is at most `texels.len() − 1` (unsigned,
+            // so never negative either), so each lane reads a `u32` inside
+            // `texels`.
+            unsafe {
+                let at = bytemuck::cast::<u32x8, __m256i>(at);
+                bytemuck::cast(_mm256_i32gather_epi32::<4>(texels.as_ptr().cast(), at))
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        {
+            let at: [u32; 8] = bytemuck::cast(at);
+            i32x8::from(at.map(|k| texels[k as usize] as i32))
+        }
+    }
+    #[inline(always)]
+    fn gather_table(table: &[f32; 256], at: i32x8) -> Self {
+        let at = at & i32x8::splat(255);
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        {
+            use std::arch::x86_64::{__m256i, _mm256_i32gather_ps};
+            // SAFETY: AVX2 is enabled at compile time (the `cfg` above);
+            // every lane of `at` is in `0..256`, so each reads an `f32`
+            // inside `table`.
+            unsafe {
+                let at = bytemuck::cast::<i32x8, __m256i>(at);
+                bytemuck::cast(_mm256_i32gather_ps::<4>(table.as_ptr(), at))
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        {
+            let at: [i32; 8] = bytemuck::cast(at);
+            f32x8::from(at.map(|k| table[k as usize]))
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -261,6 +347,7 @@ pub(crate) use x16::F32x16;
 mod x16 {
     use super::Lanes;
     use crate::math::Real;
+    use crate::scene::texture::TexelIndex;
     use std::arch::x86_64::*;
     use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
 
@@ -283,8 +370,51 @@ mod x16 {
     // AVX-512F/DQ ones, and this code only runs on a CPU that has them (see
     // the module's documentation). None of the intrinsics touches memory
     // through a pointer except `_mm512_loadu_*`, whose pointers come from
-    // arrays of exactly 16 lanes, and `_mm512_storeu_si512` in `compress`,
-    // whose pointer comes from a slice of exactly 16 lanes.
+    // arrays of exactly 16 lanes, `_mm512_storeu_si512` in `compress`,
+    // whose pointer comes from a slice of exactly 16 lanes, and the gathers
+    // of `gather_texels` and `gather_table`, whose lanes are clamped or
+    // masked into their slices first.
+
+    impl Add for I32x16 {
+        type Output = Self;
+        #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_add_epi32(self.0, o.0) })
+        }
+    }
+
+    impl BitAnd for I32x16 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, o: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_and_si512(self.0, o.0) })
+        }
+    }
+
+    impl TexelIndex for I32x16 {
+        #[inline(always)]
+        fn splat_index(k: i32) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_set1_epi32(k) })
+        }
+        #[inline(always)]
+        fn shr(self, k: u32) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_srlv_epi32(self.0, _mm512_set1_epi32(k as i32)) })
+        }
+        #[inline(always)]
+        fn shl(self, k: u32) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_sllv_epi32(self.0, _mm512_set1_epi32(k as i32)) })
+        }
+        #[inline(always)]
+        fn mul(self, o: Self) -> Self {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_mullo_epi32(self.0, o.0) })
+        }
+    }
 
     impl BitAnd for Mask16 {
         type Output = Self;
@@ -507,6 +637,42 @@ mod x16 {
                 Ok(full) => *full = lanes,
                 Err(_) => out.copy_from_slice(&lanes[..out.len()]),
             }
+        }
+        #[inline(always)]
+        fn floor(self) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe {
+                _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(self.0)
+            })
+        }
+        #[inline(always)]
+        fn to_index(self) -> I32x16 {
+            // SAFETY: see the module's documentation.
+            I32x16(unsafe { _mm512_cvttps_epi32(self.0) })
+        }
+        #[inline(always)]
+        fn index_to_float(i: I32x16) -> Self {
+            // SAFETY: see the module's documentation.
+            F32x16(unsafe { _mm512_cvtepi32_ps(i.0) })
+        }
+        #[inline(always)]
+        fn gather_texels(texels: &[u32], at: I32x16) -> I32x16 {
+            // SAFETY: see the module's documentation; every lane is
+            // clamped (unsigned) to `texels.len() − 1` first, so each reads
+            // a `u32` inside `texels`.
+            I32x16(unsafe {
+                let at = _mm512_min_epu32(at.0, _mm512_set1_epi32(texels.len() as i32 - 1));
+                _mm512_i32gather_epi32::<4>(at, texels.as_ptr().cast())
+            })
+        }
+        #[inline(always)]
+        fn gather_table(table: &[f32; 256], at: I32x16) -> Self {
+            // SAFETY: see the module's documentation; every lane is masked
+            // into `0..256` first, so each reads an `f32` inside `table`.
+            F32x16(unsafe {
+                let at = _mm512_and_si512(at.0, _mm512_set1_epi32(255));
+                _mm512_i32gather_ps::<4>(at, table.as_ptr())
+            })
         }
     }
 }

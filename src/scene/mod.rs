@@ -627,7 +627,7 @@ impl Scene {
             for k in [t.width() as u64, t.height() as u64, t.is_srgb() as u64] {
                 h.update(&k.to_le_bytes());
             }
-            h.update(t.texel_bytes());
+            t.for_each_row(|row| h.update(row));
         }
         // (Scenes without an environment hash as before it existed.)
         if let Some(e) = &self.environment {

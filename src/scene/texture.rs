@@ -34,10 +34,16 @@
 //! **Memory.** [`BYTES_PER_TEXEL`] = 4 bytes a texel (RGBA, 8 bits a
 //! channel; images of 16 bits a channel are rounded to 8 bits, grey images
 //! are expanded to RGB), plus a table of 256 `f32` (1 KiB) a texture.
+//! The texels are stored in tiles of [`TILE`] × [`TILE`] (one 64-byte
+//! cache line each; the sides rounded up to whole tiles), laid out once
+//! at load: the four texels of a bilinear lookup then lie in one cache
+//! line more often than not, and nearby lookups above and below each other
+//! share lines. [`texel_address`] is the one place that finds a texel.
 //!
-//! **Lanes.** `integrator::texture::sample_lanes` looks up 8 or 16 points at a time
-//! for the wavefront engine (in the integrator layer, where the lanes are); a texture lookup is a gather, so it runs
-//! [`Texture::sample`] lane by lane, and gives its bits exactly.
+//! **Lanes.** `integrator::texture::sample_lanes` looks up 8 or 16 points
+//! at a time for the wavefront engine (in the integrator layer, where the
+//! lanes are): the same arithmetic in lanes, the texels gathered, and the
+//! same bits as [`Texture::sample`] in every lane.
 
 use std::fmt;
 
@@ -207,13 +213,81 @@ impl fmt::Display for TextureError {
 
 impl std::error::Error for TextureError {}
 
-/// An image, decoded: RGBA texels of one byte a channel, row by row from
-/// the top, with the table that turns a byte into its value.
+/// The side of a tile of texels: an image is stored in tiles of
+/// `TILE × TILE` texels (16 texels of 4 bytes: one 64-byte cache line),
+/// the tiles row by row from the top, the texels of a tile row by row.
+pub const TILE: usize = 4;
+
+/// One tile of texels, each an RGBA texel as a little-endian `u32` (red in
+/// the low byte), aligned to a cache line.
+#[derive(Clone, Copy, PartialEq, Eq)]
+#[repr(C, align(64))]
+struct Tile([u32; TILE * TILE]);
+
+// SAFETY: `Tile` is `repr(C)`, 64 bytes of `u32` with no padding (its
+// alignment, 64, is its size), so every bit pattern is a valid `Tile` and
+// it can be viewed as `u32`s.
+unsafe impl bytemuck::Zeroable for Tile {}
+// SAFETY: as above.
+unsafe impl bytemuck::Pod for Tile {}
+
+/// Integers, in one lane or several, that texel addresses are computed in
+/// ([`texel_address`]): `i32` for the scalar lookups, the integer lanes
+/// for the lane lookups (`integrator::texture`).
+pub trait TexelIndex:
+    Copy + std::ops::Add<Output = Self> + std::ops::BitAnd<Output = Self>
+{
+    /// The same value in every lane.
+    fn splat_index(k: i32) -> Self;
+    /// Logical shift right by `k` bits (`k < 32`).
+    fn shr(self, k: u32) -> Self;
+    /// Shift left by `k` bits (`k < 32`).
+    fn shl(self, k: u32) -> Self;
+    /// The low 32 bits of the product.
+    fn mul(self, o: Self) -> Self;
+}
+
+impl TexelIndex for i32 {
+    #[inline(always)]
+    fn splat_index(k: i32) -> Self {
+        k
+    }
+    #[inline(always)]
+    fn shr(self, k: u32) -> Self {
+        ((self as u32) >> k) as i32
+    }
+    #[inline(always)]
+    fn shl(self, k: u32) -> Self {
+        self << k
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self.wrapping_mul(o)
+    }
+}
+
+/// Where texel `(i, j)` (column, row; `0 ≤ i, j < 16384`) lies among the
+/// texels of an image stored in tiles ([`TILE`]) that is `tiles_across`
+/// tiles wide: the one address computation of the scalar and the lane
+/// lookups.
+#[inline(always)]
+pub fn texel_address<I: TexelIndex>(i: I, j: I, tiles_across: I) -> I {
+    let low = I::splat_index(TILE as i32 - 1);
+    let tile = j.shr(2).mul(tiles_across) + i.shr(2);
+    tile.shl(4) + (j & low).shl(2) + (i & low)
+}
+
+/// An image, decoded: RGBA texels of one byte a channel, stored in tiles
+/// ([`TILE`]), with the table that turns a byte into its value.
 #[derive(Clone, PartialEq)]
 pub struct Texture {
     width: usize,
     height: usize,
-    texels: Vec<[u8; 4]>,
+    /// Tiles across a row of tiles: `⌈width / TILE⌉`.
+    tiles_across: usize,
+    /// `⌈width / TILE⌉ × ⌈height / TILE⌉` tiles (the texels past the
+    /// image's right and bottom edges are zero, and never read).
+    tiles: Vec<Tile>,
     space: ColourSpace,
     table: Box<[f32; 256]>,
 }
@@ -246,25 +320,38 @@ impl Texture {
         texels: Vec<[u8; 4]>,
         space: ColourSpace,
     ) -> Result<Self, TextureError> {
+        Self::from_rgba8_bytes(width, height, bytemuck::cast_slice(&texels), space)
+    }
+
+    /// A texture of `width × height` RGBA texels given as bytes (4 a
+    /// texel, row by row from the top), laid out in tiles once, here.
+    pub fn from_rgba8_bytes(
+        width: usize,
+        height: usize,
+        bytes: &[u8],
+        space: ColourSpace,
+    ) -> Result<Self, TextureError> {
         if width == 0 || height == 0 || width > MAX_SIDE as usize || height > MAX_SIDE as usize {
             return Err(TextureError(format!(
                 "an image of {width} × {height} texels (each side must be 1 to {MAX_SIDE})"
             )));
         }
-        if texels.len() != width * height {
+        if bytes.len() != width * height * BYTES_PER_TEXEL {
             return Err(TextureError(format!(
                 "{} texels for an image of {width} × {height}",
-                texels.len()
+                bytes.len() / BYTES_PER_TEXEL
             )));
         }
         let table = Box::new(std::array::from_fn(|k| match space {
             ColourSpace::Srgb => srgb_to_linear(k as f64 / 255.0) as f32,
             ColourSpace::Linear => k as f32 / 255.0,
         }));
+        let (tiles_across, tiles) = tiled(width, height, bytes);
         Ok(Self {
             width,
             height,
-            texels,
+            tiles_across,
+            tiles,
             space,
             table,
         })
@@ -323,12 +410,7 @@ impl Texture {
             .map_err(|e| TextureError(format!("cannot decode the image: {e}")))?;
         let rgba = image.into_rgba8();
         let (w, h) = (rgba.width() as usize, rgba.height() as usize);
-        let texels = rgba
-            .as_raw()
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
-            .collect();
-        Self::from_rgba8(w, h, texels, space)
+        Self::from_rgba8_bytes(w, h, rgba.as_raw(), space)
     }
 
     /// The width in texels.
@@ -346,14 +428,55 @@ impl Texture {
         self.space
     }
 
-    /// The memory its texels take, in bytes ([`BYTES_PER_TEXEL`] a texel).
+    /// The memory its texels take, in bytes ([`BYTES_PER_TEXEL`] a texel,
+    /// the image's width and height rounded up to whole tiles).
     pub fn bytes(&self) -> usize {
-        self.texels.len() * BYTES_PER_TEXEL
+        self.tiles.len() * TILE * TILE * BYTES_PER_TEXEL
     }
 
-    /// The texels' bytes, RGBA, row by row from the top.
-    pub fn texel_bytes(&self) -> &[u8] {
-        bytemuck::cast_slice(&self.texels)
+    /// The texels' bytes, RGBA, row by row from the top: `row` is called
+    /// with each row's bytes in turn (what a hash of the image reads; the
+    /// texels are stored in tiles).
+    pub fn for_each_row(&self, mut row: impl FnMut(&[u8])) {
+        let mut bytes = Vec::with_capacity(self.width * BYTES_PER_TEXEL);
+        let texels = self.tiled_texels();
+        for j in 0..self.height {
+            bytes.clear();
+            for i in (0..self.width).step_by(TILE) {
+                let at = self.address(i, j);
+                let n = TILE.min(self.width - i);
+                for t in &texels[at..at + n] {
+                    bytes.extend_from_slice(&t.to_le_bytes());
+                }
+            }
+            row(&bytes);
+        }
+    }
+
+    /// The texels as stored: tiles of [`TILE`] × [`TILE`], row by row from
+    /// the top, each texel a little-endian `u32` (red in the low byte);
+    /// texel `(i, j)` is at [`texel_address`]`(i, j, tiles_across)`.
+    #[inline(always)]
+    pub fn tiled_texels(&self) -> &[u32] {
+        bytemuck::cast_slice(&self.tiles)
+    }
+
+    /// How many tiles a row of tiles holds: `⌈width / TILE⌉`.
+    #[inline(always)]
+    pub fn tiles_across(&self) -> usize {
+        self.tiles_across
+    }
+
+    /// The 256 decoded values of a byte of red, green or blue.
+    #[inline(always)]
+    pub fn table(&self) -> &[f32; 256] {
+        &self.table
+    }
+
+    /// Where texel `(i, j)` (both in range) lies in [`tiled_texels`](Self::tiled_texels).
+    #[inline(always)]
+    fn address(&self, i: usize, j: usize) -> usize {
+        texel_address(i as i32, j as i32, self.tiles_across as i32) as usize
     }
 
     /// Whether it decodes with the sRGB curve (else linearly).
@@ -365,7 +488,7 @@ impl Texture {
     /// the table, alpha linear.
     #[inline]
     pub fn texel(&self, i: usize, j: usize) -> [f32; 4] {
-        let t = self.texels[j * self.width + i];
+        let t = self.tiled_texels()[self.address(i, j)].to_le_bytes();
         let tb = &self.table;
         [
             tb[t[0] as usize],
@@ -410,6 +533,39 @@ impl Texture {
     }
 }
 
+/// The texels of a `width × height` image given as RGBA bytes row by row
+/// from the top, laid out in tiles ([`TILE`]): the number of tiles across
+/// and the tiles.
+fn tiled(width: usize, height: usize, bytes: &[u8]) -> (usize, Vec<Tile>) {
+    let across = width.div_ceil(TILE);
+    let mut tiles = vec![Tile([0; TILE * TILE]); across * height.div_ceil(TILE)];
+    let row_bytes = width * BYTES_PER_TEXEL;
+    for (j, row) in bytes.chunks_exact(row_bytes).enumerate() {
+        let (tile_row, r) = (j / TILE, j % TILE);
+        let tiles = &mut tiles[tile_row * across..(tile_row + 1) * across];
+        // A whole tile's row of a row at a time (4 texels, 16 bytes), then
+        // the part tile at the right edge.
+        let whole = row.chunks_exact(TILE * BYTES_PER_TEXEL);
+        let rest = whole.remainder();
+        for (tile, quad) in tiles.iter_mut().zip(whole) {
+            let out = &mut tile.0[r * TILE..(r + 1) * TILE];
+            for (t, b) in out.iter_mut().zip(quad.chunks_exact(BYTES_PER_TEXEL)) {
+                *t = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
+        }
+        if !rest.is_empty() {
+            let tile = &mut tiles[across - 1];
+            for (t, b) in tile.0[r * TILE..]
+                .iter_mut()
+                .zip(rest.chunks_exact(BYTES_PER_TEXEL))
+            {
+                *t = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
+        }
+    }
+    (across, tiles)
+}
+
 impl TextureRef {
     /// What a scene's content hash takes of it, as words of three floats
     /// (the first word starts with `slot`, the parameter it textures).
@@ -441,4 +597,93 @@ pub struct TextureRef {
     pub transform: UvTransform,
     /// A normal texture's `scale` (1 for the others).
     pub scale: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Row-major RGBA bytes of a `w × h` image, every texel distinct (as
+    /// a 32-bit word).
+    fn row_major(w: usize, h: usize) -> Vec<u8> {
+        (0..w * h)
+            .flat_map(|k| {
+                let k = k as u32;
+                (k.wrapping_mul(0x9e37_79b9) ^ (k << 8) ^ 0x5a).to_le_bytes()
+            })
+            .collect()
+    }
+
+    /// The tiled texels give, for every `(i, j)` of images of odd and
+    /// even, whole-tile and part-tile sizes, the texel the row-major image
+    /// has there (raw, and decoded by [`Texture::texel`]); the rows read
+    /// back are the image's bytes; and the addresses are distinct and
+    /// inside the storage.
+    #[test]
+    fn tiles_hold_the_row_major_texels() {
+        let sizes = [
+            (1, 1),
+            (5, 3),
+            (3, 5),
+            (1, 13),
+            (13, 1),
+            (4, 4),
+            (8, 4),
+            (7, 9),
+            (17, 17),
+            (33, 2),
+        ];
+        for (w, h) in sizes {
+            let bytes = row_major(w, h);
+            let t = Texture::from_rgba8_bytes(w, h, &bytes, ColourSpace::Srgb).unwrap();
+            let tiles = (w.div_ceil(TILE), h.div_ceil(TILE));
+            assert_eq!(t.tiles_across(), tiles.0);
+            assert_eq!(t.bytes(), tiles.0 * tiles.1 * TILE * TILE * BYTES_PER_TEXEL);
+            let texels = t.tiled_texels();
+            let mut seen = vec![false; texels.len()];
+            for j in 0..h {
+                for i in 0..w {
+                    let at = texel_address(i as i32, j as i32, t.tiles_across() as i32) as usize;
+                    assert!(
+                        at < texels.len() && !seen[at],
+                        "{w} × {h}: ({i}, {j}) at {at}"
+                    );
+                    seen[at] = true;
+                    let b = &bytes[(j * w + i) * 4..][..4];
+                    assert_eq!(
+                        texels[at].to_le_bytes(),
+                        [b[0], b[1], b[2], b[3]],
+                        "{w} × {h}: texel ({i}, {j})"
+                    );
+                    let tb = t.table();
+                    let want = [tb[b[0] as usize], tb[b[1] as usize], tb[b[2] as usize]];
+                    let got = t.texel(i, j);
+                    assert_eq!(got[..3], want, "{w} × {h}: texel ({i}, {j}) decoded");
+                    assert_eq!(got[3], b[3] as f32 / 255.0);
+                }
+            }
+            let mut back = Vec::new();
+            let mut rows = 0;
+            t.for_each_row(|row| {
+                assert_eq!(row.len(), w * BYTES_PER_TEXEL);
+                back.extend_from_slice(row);
+                rows += 1;
+            });
+            assert_eq!((rows, &back), (h, &bytes), "{w} × {h}: the rows read back");
+            // `from_rgba8` (texels) lays out as `from_rgba8_bytes` does.
+            let texels: Vec<[u8; 4]> = bytes
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect();
+            assert!(Texture::from_rgba8(w, h, texels, ColourSpace::Srgb).unwrap() == t);
+        }
+    }
+
+    /// Sizes and texel counts that do not agree are refused, by name.
+    #[test]
+    fn a_wrong_number_of_bytes_is_refused() {
+        let e = Texture::from_rgba8_bytes(3, 2, &[0; 20], ColourSpace::Linear).unwrap_err();
+        assert_eq!(e.0, "5 texels for an image of 3 × 2");
+        assert!(Texture::from_rgba8_bytes(0, 2, &[], ColourSpace::Linear).is_err());
+    }
 }
