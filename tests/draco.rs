@@ -106,15 +106,7 @@ fn engines_agree(scene: &Scene, what: &str, spp: u32) -> Vec<[f32; 3]> {
         render(scene, Engine::Reference, spp).to_rgb(),
         render(scene, Engine::Wavefront, spp).to_rgb(),
     );
-    for (i, (pa, pb)) in a.iter().zip(&b).enumerate() {
-        for c in 0..3 {
-            let (x, y) = (pa[c], pb[c]);
-            assert!(
-                (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
-                "{what}: pixel {i} channel {c}: reference {x}, wavefront {y}"
-            );
-        }
-    }
+    common::assert_engines_close(what, &a, &b);
     a
 }
 

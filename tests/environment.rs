@@ -151,15 +151,7 @@ fn an_invisible_environment_lights_the_scene_but_not_the_background() {
 /// Per pixel and channel: the engines trace the same paths and sum their
 /// terms in another order.
 fn assert_close(what: &str, a: &Film, b: &Film) {
-    for (i, (pa, pb)) in a.to_rgb().iter().zip(&b.to_rgb()).enumerate() {
-        for c in 0..3 {
-            let (x, y) = (pa[c], pb[c]);
-            assert!(
-                (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
-                "{what}: pixel {i} channel {c}: reference {x}, wavefront {y}"
-            );
-        }
-    }
+    common::assert_engines_close(what, &a.to_rgb(), &b.to_rgb());
 }
 
 #[test]

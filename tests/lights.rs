@@ -404,15 +404,11 @@ fn the_wavefront_engine_matches_the_reference_with_every_light_type() {
                 s.engine = Engine::Reference;
             });
             let b = render(&scene, settings);
-            for (i, (pa, pb)) in a.to_rgb().iter().zip(&b.to_rgb()).enumerate() {
-                for c in 0..3 {
-                    let (x, y) = (pa[c], pb[c]);
-                    assert!(
-                        (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
-                        "{integrator:?} {sampler:?}: pixel {i} channel {c}: {x} vs {y}"
-                    );
-                }
-            }
+            common::assert_engines_close(
+                &format!("{integrator:?} {sampler:?}"),
+                &a.to_rgb(),
+                &b.to_rgb(),
+            );
         }
     }
 }

@@ -1153,17 +1153,8 @@ fn both_engines_trace_the_same_paths_on_textured_assets() {
                 render(&scene, &s).to_rgb()
             };
             let (a, b) = (film(Engine::Reference), film(Engine::Wavefront));
-            let mut sum = 0.0f64;
-            for (i, (pa, pb)) in a.iter().zip(&b).enumerate() {
-                for c in 0..3 {
-                    let (x, y) = (pa[c], pb[c]);
-                    assert!(
-                        (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
-                        "{name} {integrator:?}: pixel {i} channel {c}: reference {x}, wavefront {y}"
-                    );
-                    sum += x as f64;
-                }
-            }
+            common::assert_engines_close(&format!("{name} {integrator:?}"), &a, &b);
+            let sum: f64 = a.iter().flatten().map(|&x| x as f64).sum();
             assert!(sum > 0.0, "{name}: a black image");
         }
     }

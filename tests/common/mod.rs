@@ -503,3 +503,20 @@ pub fn scene_of(dir: &TempDir, name: &str, bytes: &[u8]) -> Scene {
     std::fs::write(&path, bytes).unwrap();
     wavetrace::scene::asset_scene::load(&path, None).unwrap().0
 }
+
+/// The reference tracer's and the wavefront engine's images of the same
+/// scene agree per pixel and channel to rounding (the engines trace the
+/// same paths and sum their terms in another order).
+#[allow(dead_code)]
+pub fn assert_engines_close(what: &str, reference: &[[f32; 3]], wavefront: &[[f32; 3]]) {
+    assert_eq!(reference.len(), wavefront.len(), "{what}: image sizes");
+    for (i, (pa, pb)) in reference.iter().zip(wavefront).enumerate() {
+        for c in 0..3 {
+            let (x, y) = (pa[c], pb[c]);
+            assert!(
+                (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6,
+                "{what}: pixel {i} channel {c}: reference {x}, wavefront {y}"
+            );
+        }
+    }
+}
