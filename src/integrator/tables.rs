@@ -14,6 +14,7 @@ use crate::accel::triangle::hit_point;
 use crate::integrator::bsdf::surface::Texels;
 use crate::integrator::bsdf::{Constants, Surface};
 use crate::integrator::surface::SurfaceHit;
+use crate::integrator::texture::sample_lanes;
 use crate::math::{V3, Vec3x8};
 use crate::scene::material::Coverage;
 use crate::scene::texture::{Texture, TextureRef};
@@ -374,12 +375,26 @@ impl Tables {
             return front;
         }
         let (f, p) = (lanes3(front), lanes3(p));
-        let normals = || replace_lanes(front, |l| self.shading_normal(prims[l], f[l], p[l]));
-        if self.normal_maps {
-            crate::integrator::texture::timed(normals)
-        } else {
-            normals()
+        if !self.normal_maps {
+            return replace_lanes(front, |l| self.vertex_normal(prims[l], f[l], p[l]));
         }
+        crate::integrator::texture::timed(|| {
+            // Each lane's `shading_normal`, its normal texture read for
+            // the eight lanes at once (`lookup_8`): the same bits.
+            let smooth: [_; 8] = std::array::from_fn(|l| self.vertex_normal(prims[l], f[l], p[l]));
+            let frames: [_; 8] = std::array::from_fn(|l| {
+                self.normal_frame(prims[l], smooth[l].unwrap_or(f[l]), p[l])
+            });
+            let maps = frames.each_ref().map(|b| b.as_ref().map(|b| b.map));
+            let uv = frames
+                .each_ref()
+                .map(|b| b.as_ref().map_or([[0.0; 2]; 2], |b| b.uv));
+            let texels = self.lookup_8(&maps, &uv);
+            replace_lanes(front, |l| {
+                let bent = frames[l].as_ref().and_then(|b| b.bend(texels[l], f[l]));
+                bent.or(smooth[l])
+            })
+        })
     }
 
     /// The front shading normal of primitive `prim` at its point `p`, for
@@ -417,6 +432,17 @@ impl Tables {
         (front, n): (V3<f32>, V3<f32>),
         p: V3<f32>,
     ) -> Option<V3<f32>> {
+        let b = self.normal_frame(prim, n, p)?;
+        b.bend(self.lookup(b.map, b.uv), front)
+    }
+
+    /// What [`mapped_normal`](Self::mapped_normal) reads the normal
+    /// texture with, before the lookup: the material's map, the texture
+    /// coordinates at `p`, and the tangent frame about the shading normal
+    /// `n`. `None` where there is nothing to bend (no texture, no
+    /// tangents, a degenerate tangent).
+    #[inline(always)]
+    fn normal_frame(&self, prim: usize, n: V3<f32>, p: V3<f32>) -> Option<NormalFrame<'_>> {
         let m = &self.materials[*self.material_of.get(prim)? as usize];
         let map = m.maps.normal.as_ref()?;
         let tangents = self.tangents.get(prim)?;
@@ -434,16 +460,13 @@ impl Tables {
         let w = if tangents[0][3] < 0.0 { -1.0 } else { 1.0 };
         let bitangent = n.cross(t) * w;
         let uv = self.texcoords(prim, V3::from(p));
-        let at = map.transform.apply(uv[(map.tex_coord as usize).min(1)]);
-        let c = self.textures[map.texture as usize].sample(map.sampler, at[0], at[1]);
-        let (x, y, z) = (
-            (2.0 * c[0] - 1.0) * map.scale,
-            (2.0 * c[1] - 1.0) * map.scale,
-            2.0 * c[2] - 1.0,
-        );
-        let bent = (t * x + bitangent * y + n * z).normalize_or_zero();
-        let above = bent.dot(glam::Vec3::from(front)) > 0.0;
-        (above && bent.is_finite()).then(|| V3::from(bent))
+        Some(NormalFrame {
+            map,
+            uv,
+            t,
+            bitangent,
+            n,
+        })
     }
 
     /// A smooth triangle's front shading normal from its vertex normals
@@ -651,14 +674,67 @@ impl Tables {
         self.textures[t.texture as usize].sample(t.sampler, at[0], at[1])
     }
 
+    /// [`lookup`](Self::lookup) of eight lanes: lane `l`'s texture
+    /// `maps[l]` at its texture coordinates `uv[l]` (zero where
+    /// `maps[l]` is `None`), the same bits. The lanes that read one
+    /// texture with one sampler are looked up together, in one
+    /// [`sample_lanes`] (each at its coordinates through its own map's set
+    /// and transform; the other lanes at 0, their results dropped): one
+    /// call where the eight lanes read the same texture, at most eight.
+    #[inline(always)]
+    fn lookup_8(&self, maps: &[Option<&TextureRef>; 8], uv: &[[[f32; 2]; 2]; 8]) -> [[f32; 4]; 8] {
+        let mut out = [[0.0; 4]; 8];
+        let mut todo = (0..8).fold(0u8, |m, l| m | (u8::from(maps[l].is_some()) << l));
+        while todo != 0 {
+            let Some(first) = maps[todo.trailing_zeros() as usize] else {
+                unreachable!("a lane to look up has a map")
+            };
+            let (texture, sampler) = (first.texture, first.sampler);
+            let (mut u, mut v) = ([0.0f32; 8], [0.0f32; 8]);
+            let mut group = 0u8;
+            for l in 0..8 {
+                if let Some(t) = maps[l]
+                    && todo & (1 << l) != 0
+                    && t.texture == texture
+                    && t.sampler == sampler
+                {
+                    [u[l], v[l]] = t.transform.apply(uv[l][(t.tex_coord as usize).min(1)]);
+                    group |= 1 << l;
+                }
+            }
+            todo &= !group;
+            let texture = &self.textures[texture as usize];
+            let c = sample_lanes(texture, sampler, f32x8::from(u), f32x8::from(v));
+            let c = [
+                c[0].to_array(),
+                c[1].to_array(),
+                c[2].to_array(),
+                c[3].to_array(),
+            ];
+            for (l, out) in out.iter_mut().enumerate() {
+                if group & (1 << l) != 0 {
+                    *out = [c[0][l], c[1][l], c[2][l], c[3][l]];
+                }
+            }
+        }
+        out
+    }
+
     /// What multiplies material `m`'s colour on primitive `prim` at the
     /// point `p` of texture coordinates `uv`: its base colour texture
     /// there times the triangle's vertex colours (1 without either).
     #[inline]
     fn colour_at(&self, prim: usize, m: &Material, uv: [[f32; 2]; 2], p: V3<f32>) -> glam::Vec3 {
+        let base = (m.maps.base_colour.as_ref()).map(|t| self.lookup(t, uv));
+        self.tint(prim, base, p)
+    }
+
+    /// [`colour_at`](Self::colour_at) from the base colour texture's
+    /// texel `base` there (`None`: the material has none).
+    #[inline(always)]
+    fn tint(&self, prim: usize, base: Option<[f32; 4]>, p: V3<f32>) -> glam::Vec3 {
         let mut colour = glam::Vec3::ONE;
-        if let Some(t) = &m.maps.base_colour {
-            let c = self.lookup(t, uv);
+        if let Some(c) = base {
             colour = glam::Vec3::new(c[0], c[1], c[2]);
         }
         if let Some((v, c)) = self.colours.get(prim) {
@@ -724,10 +800,31 @@ impl Tables {
         }
         let p = lanes3(hit.p);
         let uv = hit.uv.map(|set| set.map(|c| c.to_array()));
+        let uv: [[[f32; 2]; 2]; 8] = std::array::from_fn(|l| uv.map(|set| set.map(|c| c[l])));
         crate::integrator::texture::timed(|| {
+            // Each lane's `scattering_at`, its maps read for the eight
+            // lanes at once, map by map (`lookup_8`): the same bits.
+            let materials: [&Material; 8] =
+                std::array::from_fn(|l| &self.materials[hit.material[l] as usize]);
+            let maps = materials.map(scattering_maps);
+            let texels: [[[f32; 4]; 8]; SCATTERING_MAPS] = std::array::from_fn(|k| {
+                let of_map = maps.map(|m| m[k]);
+                match of_map.iter().any(Option::is_some) {
+                    true => self.lookup_8(&of_map, &uv),
+                    false => [[0.0; 4]; 8],
+                }
+            });
             Surface::lanes(model, |l| {
-                let uv = uv.map(|set| set.map(|c| c[l]));
-                self.scattering_at(tris[l], hit.material[l], uv, p[l])
+                let m = materials[l];
+                let base = maps[l][0].map(|_| texels[0][l]);
+                let looked = Looked {
+                    tables: self,
+                    uv: uv[l],
+                    colour: self.tint(tris[l], base, p[l]),
+                    maps: maps[l],
+                    texels: std::array::from_fn(|k| texels[k][l]),
+                };
+                Surface::at(m, &looked)
             })
         })
     }
@@ -756,6 +853,82 @@ impl Texels for AtHit<'_> {
     #[inline]
     fn read(&self, map: Option<&TextureRef>) -> Option<[f32; 4]> {
         map.map(|t| self.tables.lookup(t, self.uv))
+    }
+}
+
+/// How many of a material's maps its scattering parameters read
+/// ([`scattering_maps`]).
+const SCATTERING_MAPS: usize = 5;
+
+/// The maps of material `m` its scattering parameters read
+/// ([`Surface::at`]), base colour first.
+#[inline(always)]
+fn scattering_maps(m: &Material) -> [Option<&TextureRef>; SCATTERING_MAPS] {
+    let maps = &m.maps;
+    [
+        maps.base_colour.as_ref(),
+        maps.metallic_roughness.as_ref(),
+        maps.transmission.as_ref(),
+        maps.specular.as_ref(),
+        maps.specular_colour.as_ref(),
+    ]
+}
+
+/// What a material's textures read at a hit, looked up already (for a
+/// lane of [`Tables::surfaces_at`]): its colour, and the texels of its
+/// [`scattering_maps`] there. A map that is none of those (no model asks
+/// for one) is looked up as [`AtHit`] does it.
+struct Looked<'a> {
+    tables: &'a Tables,
+    uv: [[f32; 2]; 2],
+    colour: glam::Vec3,
+    maps: [Option<&'a TextureRef>; SCATTERING_MAPS],
+    texels: [[f32; 4]; SCATTERING_MAPS],
+}
+
+impl Texels for Looked<'_> {
+    #[inline(always)]
+    fn colour(&self) -> glam::Vec3 {
+        self.colour
+    }
+    #[inline(always)]
+    fn read(&self, map: Option<&TextureRef>) -> Option<[f32; 4]> {
+        let map = map?;
+        for (k, m) in self.maps.iter().enumerate() {
+            if m.is_some_and(|m| std::ptr::eq(m, map)) {
+                return Some(self.texels[k]);
+            }
+        }
+        Some(self.tables.lookup(map, self.uv))
+    }
+}
+
+/// What a normal texture bends at a hit ([`Tables::normal_frame`]): the
+/// map, the texture coordinates there, and the frame (the tangent `t`,
+/// the bitangent and the shading normal `n` it bends).
+struct NormalFrame<'a> {
+    map: &'a TextureRef,
+    uv: [[f32; 2]; 2],
+    t: glam::Vec3,
+    bitangent: glam::Vec3,
+    n: glam::Vec3,
+}
+
+impl NormalFrame<'_> {
+    /// The normal the texel `c` (the map at the hit) makes of the frame,
+    /// as [`Tables::mapped_normal`] defines it: `None` where it is
+    /// degenerate or turns below the geometric front normal `front`.
+    #[inline(always)]
+    fn bend(&self, c: [f32; 4], front: V3<f32>) -> Option<V3<f32>> {
+        let scale = self.map.scale;
+        let (x, y, z) = (
+            (2.0 * c[0] - 1.0) * scale,
+            (2.0 * c[1] - 1.0) * scale,
+            2.0 * c[2] - 1.0,
+        );
+        let bent = (self.t * x + self.bitangent * y + self.n * z).normalize_or_zero();
+        let above = bent.dot(glam::Vec3::from(front)) > 0.0;
+        (above && bent.is_finite()).then(|| V3::from(bent))
     }
 }
 
