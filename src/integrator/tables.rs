@@ -87,6 +87,9 @@ pub struct Tables {
     /// it is textured (a material with [`Maps`](crate::scene::material::Maps),
     /// or vertex colours): its parameters are looked up per hit.
     textured: [bool; Model::ALL.len()],
+    /// Per model, which of the [`scattering_maps`] some material of it
+    /// has (bit `k`: map `k`): the maps [`Tables::surfaces_at`] reads.
+    maps_of_model: [u8; Model::ALL.len()],
     /// Triangles' vertices and vertex colours ([`Scene::texturing`]), or
     /// empty.
     colours: Vec<([glam::Vec3; 3], [[f32; 4]; 3])>,
@@ -180,6 +183,12 @@ impl Tables {
                 (scene.materials.iter()).any(|m| {
                     m.model == model && (!m.maps.is_empty() || !scene.texturing.colours.is_empty())
                 })
+            }),
+            maps_of_model: Model::ALL.map(|model| {
+                (scene.materials.iter())
+                    .filter(|m| m.model == model)
+                    .flat_map(|m| scattering_maps(m).into_iter().enumerate())
+                    .fold(0, |bits, (k, map)| bits | (u8::from(map.is_some()) << k))
             }),
             colours: (scene.triangles.iter())
                 .zip(&scene.texturing.colours)
@@ -580,6 +589,44 @@ impl Tables {
         Some(self.emission_at(material, self.texcoords(prim as usize, p)))
     }
 
+    /// [`light_emission`](Self::light_emission) of eight lanes (the
+    /// first `lanes`; `None` in the others): the primitives `prims` at
+    /// the points `p`, their emission textures read for the lanes at once
+    /// ([`lookup_8`](Self::lookup_8)), the same bits; on the texture
+    /// clock ([`timed`](crate::integrator::texture::timed)) where some
+    /// lane reads one.
+    #[inline]
+    pub fn light_emissions_8(
+        &self,
+        prims: [u32; 8],
+        p: [V3<f32>; 8],
+        lanes: usize,
+    ) -> [Option<[f32; 3]>; 8] {
+        let materials: [Option<&Material>; 8] = std::array::from_fn(|l| {
+            let m = self
+                .material_of
+                .get(prims[l] as usize)
+                .filter(|_| l < lanes)?;
+            Some(&self.materials[*m as usize])
+        });
+        let maps = materials.map(|m| m.and_then(|m| m.maps.emissive.as_ref()));
+        if maps.iter().all(Option::is_none) {
+            return [None; 8];
+        }
+        crate::integrator::texture::timed(|| {
+            let uv: [_; 8] = std::array::from_fn(|l| match maps[l] {
+                Some(_) => self.texcoords(prims[l] as usize, p[l]),
+                None => [[0.0; 2]; 2],
+            });
+            let c = self.lookup_8(&maps, &uv);
+            std::array::from_fn(|l| {
+                maps[l]?;
+                let f = materials[l]?.maps.emissive_factor;
+                Some([f.x * c[l][0], f.y * c[l][1], f.z * c[l][2]])
+            })
+        })
+    }
+
     /// Whether some surface may let rays through ([`Tables::passes`]).
     #[inline(always)]
     pub fn has_cutouts(&self) -> bool {
@@ -807,24 +854,24 @@ impl Tables {
             let materials: [&Material; 8] =
                 std::array::from_fn(|l| &self.materials[hit.material[l] as usize]);
             let maps = materials.map(scattering_maps);
-            let texels: [[[f32; 4]; 8]; SCATTERING_MAPS] = std::array::from_fn(|k| {
-                let of_map = maps.map(|m| m[k]);
-                match of_map.iter().any(Option::is_some) {
-                    true => self.lookup_8(&of_map, &uv),
-                    false => [[0.0; 4]; 8],
+            let used = self.maps_of_model[model as usize];
+            let mut texels = [[[0.0; 4]; 8]; SCATTERING_MAPS];
+            for (k, texels) in texels.iter_mut().enumerate() {
+                if used & (1 << k) != 0 {
+                    *texels = self.lookup_8(&maps.map(|m| m[k]), &uv);
                 }
-            });
+            }
             Surface::lanes(model, |l| {
-                let m = materials[l];
                 let base = maps[l][0].map(|_| texels[0][l]);
                 let looked = Looked {
                     tables: self,
                     uv: uv[l],
                     colour: self.tint(tris[l], base, p[l]),
-                    maps: maps[l],
-                    texels: std::array::from_fn(|k| texels[k][l]),
+                    maps: &maps[l],
+                    texels: &texels,
+                    lane: l,
                 };
-                Surface::at(m, &looked)
+                Surface::at(materials[l], &looked)
             })
         })
     }
@@ -882,8 +929,11 @@ struct Looked<'a> {
     tables: &'a Tables,
     uv: [[f32; 2]; 2],
     colour: glam::Vec3,
-    maps: [Option<&'a TextureRef>; SCATTERING_MAPS],
-    texels: [[f32; 4]; SCATTERING_MAPS],
+    /// The lane's material's maps.
+    maps: &'a [Option<&'a TextureRef>; SCATTERING_MAPS],
+    /// Per map, each lane's texel.
+    texels: &'a [[[f32; 4]; 8]; SCATTERING_MAPS],
+    lane: usize,
 }
 
 impl Texels for Looked<'_> {
@@ -896,7 +946,7 @@ impl Texels for Looked<'_> {
         let map = map?;
         for (k, m) in self.maps.iter().enumerate() {
             if m.is_some_and(|m| std::ptr::eq(m, map)) {
-                return Some(self.texels[k]);
+                return Some(self.texels[k][self.lane]);
             }
         }
         Some(self.tables.lookup(map, self.uv))
@@ -1122,6 +1172,189 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A scene of the Cornell box's triangles, each of one of three
+    /// materials per model: one reading every map (base colour,
+    /// metallic-roughness, transmission, specular, specular colour,
+    /// normal, emission: textures of several sizes, both colour spaces,
+    /// every wrap and filter, transforms, both coordinate sets, some maps
+    /// sharing a texture with another sampler or transform), one reading
+    /// other textures and some of the same ones otherwise, and one reading
+    /// none; random texture coordinates, tangents and vertex colours.
+    fn textured_scene() -> Scene {
+        use crate::scene::texture::{ColourSpace, Filter, Sampler, UvTransform, Wrap};
+        let mut scene = Scene::cornell();
+        let mut rng = PathRng::new(7, 8, 9);
+        let mut u = move || rng.next_f32();
+        let mut texture = |w: usize, h: usize, space| {
+            let texels = (0..w * h)
+                .map(|_| [0; 4].map(|_: u8| (u() * 256.0) as u8))
+                .collect();
+            Texture::from_rgba8(w, h, texels, space).unwrap()
+        };
+        let textures = vec![
+            texture(13, 7, ColourSpace::Srgb),
+            texture(16, 16, ColourSpace::Linear),
+            texture(5, 9, ColourSpace::Linear),
+            texture(7, 5, ColourSpace::Srgb),
+            texture(9, 9, ColourSpace::Srgb),
+        ];
+        let sampler = |wrap_u, wrap_v, filter| Sampler {
+            wrap_u,
+            wrap_v,
+            filter,
+        };
+        let (repeat, clamp, mirror) = (Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat);
+        let map = |texture, tex_coord, sampler, transform| {
+            Some(TextureRef {
+                texture,
+                tex_coord,
+                sampler,
+                transform,
+                scale: 1.0,
+            })
+        };
+        let turned = UvTransform::new([0.3, -0.2], 0.7, [1.5, 0.8]);
+        let other = UvTransform::new([-0.1, 0.4], -0.3, [0.9, 2.1]);
+        let id = UvTransform::IDENTITY;
+        let linear = sampler(repeat, repeat, Filter::Linear);
+        let nearest = sampler(mirror, clamp, Filter::Nearest);
+        let all = crate::scene::material::Maps {
+            base_colour: map(0, 0, linear, turned),
+            metallic_roughness: map(1, 1, nearest, id),
+            transmission: map(1, 0, nearest, other),
+            emissive: map(3, 0, sampler(clamp, mirror, Filter::Linear), turned),
+            emissive_factor: glam::Vec3::new(2.0, 0.5, 1.25),
+            specular: map(4, 0, sampler(clamp, repeat, Filter::Linear), id),
+            specular_colour: map(0, 1, nearest, id),
+            normal: map(2, 0, sampler(repeat, mirror, Filter::Linear), other).map(|mut t| {
+                t.scale = 0.7;
+                t
+            }),
+        };
+        let some = crate::scene::material::Maps {
+            base_colour: map(4, 1, sampler(clamp, clamp, Filter::Linear), other),
+            metallic_roughness: map(1, 0, linear, turned),
+            normal: map(2, 1, linear, id),
+            emissive: map(3, 1, nearest, id),
+            emissive_factor: glam::Vec3::ONE,
+            ..Default::default()
+        };
+        let mut materials = Vec::new();
+        for model in Model::ALL {
+            for maps in [&all, &some, &Default::default()] {
+                let mut m =
+                    Material::diffuse("m", glam::Vec3::new(0.7, 0.5, 0.3), glam::Vec3::ZERO);
+                m.model = model;
+                (m.metallic, m.roughness, m.transmission) = (0.6, 0.4, 0.5);
+                m.maps = maps.clone();
+                if m.maps.emissive.is_some() {
+                    m.emission = glam::Vec3::splat(0.5);
+                }
+                materials.push(m);
+            }
+        }
+        for (i, t) in scene.triangles.iter_mut().enumerate() {
+            t.material = (i % materials.len()) as u32;
+        }
+        scene.materials = materials;
+        let n = scene.triangles.len();
+        let mut u = {
+            let mut rng = PathRng::new(1, 1, 1);
+            move || rng.next_f32()
+        };
+        scene.texturing.uv = (0..n)
+            .map(|_| [0; 2].map(|_| [0; 3].map(|_| [u() * 5.0 - 2.0, u() * 5.0 - 2.0])))
+            .collect();
+        scene.texturing.colours = (0..n)
+            .map(|_| [0; 3].map(|_| [u(), u(), u(), u()]))
+            .collect();
+        scene.texturing.tangents = (0..n)
+            .map(|_| {
+                let w = if u() < 0.5 { -1.0 } else { 1.0 };
+                [0; 3].map(|_| [u() - 0.5, u() - 0.5, u() - 0.5, w])
+            })
+            .collect();
+        scene.texturing.textures = Arc::new(textures);
+        scene
+    }
+
+    /// The engine's eight-lane surfaces of textured materials (their maps
+    /// read for the lanes at once) are each lane's `scattering` (the
+    /// reference tracer's scalar lookups), bit for bit, for lanes of one
+    /// material and of mixed ones (some untextured, some reading other
+    /// textures, or the same ones with another sampler or transform); so
+    /// are the normal-mapped shading normals and the textured emission
+    /// light sampling reads.
+    #[test]
+    fn eight_lanes_read_textures_as_each_lane_does() {
+        let scene = textured_scene();
+        let tables = Tables::new(&scene);
+        assert!(tables.normal_maps && tables.has_emissive_maps());
+        let mut rng = PathRng::new(3, 1, 4);
+        let mut u = || rng.next_f32();
+        let (mut bent, mut emitting) = (0, 0);
+        for model in Model::ALL {
+            assert!(tables.is_textured(model));
+            let tris: Vec<usize> = (0..scene.triangles.len())
+                .filter(|&i| tables.model_of(i as u32) == model)
+                .collect();
+            for round in 0..300 {
+                // All lanes on one triangle, on one material, or mixed.
+                let pick = |u: &mut dyn FnMut() -> f32| tris[(u() * tris.len() as f32) as usize];
+                let first = pick(&mut u);
+                let same: Vec<usize> = (tris.iter().copied())
+                    .filter(|&t| tables.material_of[t] == tables.material_of[first])
+                    .collect();
+                let ps: [usize; 8] = std::array::from_fn(|_| match round % 3 {
+                    0 => first,
+                    1 => same[(u() * same.len() as f32) as usize],
+                    _ => pick(&mut u),
+                });
+                let v = |u: &mut dyn FnMut() -> f32| V3::new(u() - 0.5, u() - 0.5, u() - 0.5);
+                type Ray = (V3<f32>, V3<f32>, f32);
+                let rays: [Ray; 8] = std::array::from_fn(|_| (v(&mut u), v(&mut u), u() + 0.5));
+                let col = |f: fn(&Ray) -> f32| f32x8::from(rays.map(|r| f(&r)));
+                let o = V3::new(col(|r| r.0.x), col(|r| r.0.y), col(|r| r.0.z));
+                let d = V3::new(col(|r| r.1.x), col(|r| r.1.y), col(|r| r.1.z));
+                let hit = tables.surface_8(&ps, (o, d), col(|r| r.2));
+                let ones: [SurfaceHit<f32>; 8] = std::array::from_fn(|l| {
+                    tables.surface(ps[l], (rays[l].0, rays[l].1), rays[l].2)
+                });
+                let lanes = format!("{:?}", tables.surfaces_at(model, &ps, &hit));
+                let each = format!(
+                    "{:?}",
+                    Surface::lanes(model, |l| tables.scattering(&ones[l]))
+                );
+                assert_eq!(lanes, each, "{model:?}, primitives {ps:?}");
+                let bits = |v: V3<f32>| [v.x, v.y, v.z].map(f32::to_bits);
+                let ns = lanes3(hit.ns);
+                let live = 1 + round % 8;
+                let points = lanes3(hit.p);
+                let prims = ps.map(|p| p as u32);
+                let emitted = tables.light_emissions_8(prims, points, live);
+                for l in 0..8 {
+                    assert_eq!(
+                        bits(ns[l]),
+                        bits(ones[l].ns),
+                        "{model:?}, lane {l} of {ps:?}"
+                    );
+                    bent += usize::from(bits(ones[l].ns) != bits(ones[l].n));
+                    let want = (l < live)
+                        .then(|| tables.light_emission(prims[l], points[l]))
+                        .flatten();
+                    let got = emitted[l].map(|e| e.map(f32::to_bits));
+                    assert_eq!(got, want.map(|e| e.map(f32::to_bits)), "lane {l} of {ps:?}");
+                    emitting += usize::from(want.is_some());
+                }
+            }
+        }
+        // The normal textures bent normals, and emission was looked up.
+        assert!(
+            bent > 1000 && emitting > 1000,
+            "{bent} bent, {emitting} emitting"
+        );
     }
 
     /// A hit's texture coordinates are its triangle's vertex coordinates

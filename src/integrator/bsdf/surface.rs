@@ -202,7 +202,7 @@ macro_rules! models {
         /// The scattering of a surface, lane by lane: its model and that
         /// model's parameters ([`Bsdf::Params`](surface::Bsdf::Params)),
         /// the same model in every lane.
-        #[derive(Clone, Copy)]
+        #[derive(Clone, Copy, Debug)]
         pub enum Surface<R: $crate::math::Real> {
             $(
                 #[doc = concat!("[`", stringify!($ty), "`]'s parameters.")]

@@ -153,8 +153,9 @@ fn connect_8<S: Sampler>(
 }
 
 /// Where the points `light` (the first `lanes` lanes) lie on emitters
-/// whose emission is textured, their radiance looked up there, lane by
-/// lane, as the reference tracer does ([`Tables::light_emission`]).
+/// whose emission is textured, their radiance looked up there, eight
+/// lanes at once ([`Tables::light_emissions_8`]: the reference tracer's
+/// [`Tables::light_emission`], bit for bit).
 #[inline(never)]
 fn textured_emission_8(tables: &Tables, light: &mut LightPoint<f32x8>, lanes: usize) {
     let prim = light.prim.to_array();
@@ -168,9 +169,10 @@ fn textured_emission_8(tables: &Tables, light: &mut LightPoint<f32x8>, lanes: us
         light.emission.y.to_array(),
         light.emission.z.to_array(),
     ];
-    for l in 0..lanes {
-        let p = V3::new(px[l], py[l], pz[l]);
-        if let Some(c) = tables.light_emission(prim[l].to_bits(), p) {
+    let p = std::array::from_fn(|l| V3::new(px[l], py[l], pz[l]));
+    let found = tables.light_emissions_8(prim.map(f32::to_bits), p, lanes);
+    for (l, c) in found.into_iter().enumerate() {
+        if let Some(c) = c {
             for k in 0..3 {
                 e[k][l] = c[k];
             }
