@@ -592,7 +592,7 @@ impl Tables {
     /// [`light_emission`](Self::light_emission) of eight lanes (the
     /// first `lanes`; `None` in the others): the primitives `prims` at
     /// the points `p`, their emission textures read for the lanes at once
-    /// ([`lookup_8`](Self::lookup_8)), the same bits; on the texture
+    /// (`lookup_8`: [`sample_lanes`] per texture), the same bits; on the texture
     /// clock ([`timed`](crate::integrator::texture::timed)) where some
     /// lane reads one.
     #[inline]
