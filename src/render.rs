@@ -9,7 +9,8 @@ use crate::integrator::nee::Estimator;
 use crate::integrator::reference::ReferenceTracer;
 use crate::integrator::sampler::{Independent, Sampler, Sobol};
 use crate::integrator::wavefront::{Scratch, WavefrontEngine};
-use crate::integrator::{Counters, Frame, TileJob, estimator_fingerprint};
+use crate::integrator::{Counters, Frame, SceneData, TileJob, estimator_fingerprint};
+pub use crate::scene::Adaptive;
 use crate::scene::{AovSet, Integrator, SamplerKind, Scene};
 use rayon::prelude::*;
 use std::any::Any;
@@ -90,6 +91,9 @@ pub struct RenderSettings {
     /// in [`image_hash`](Self::image_hash): accumulation files record
     /// their AOVs themselves).
     pub aovs: AovSet,
+    /// Adaptive sampling: pixels stop taking samples once their error is
+    /// low enough (`None`: every pixel takes `spp` samples).
+    pub adaptive: Option<Adaptive>,
 }
 
 /// Bytes per pixel of a render: the film's sums (48), the sums of the
@@ -203,6 +207,16 @@ impl RenderSettings {
                 a if scene.has_transparent_background() => a.with(crate::scene::Aov::Alpha),
                 a => a,
             },
+            adaptive: None,
+        }
+    }
+
+    /// The AOVs a film of these settings holds: [`aovs`](Self::aovs), and
+    /// the variance (the sums of squares) where adaptive sampling needs it.
+    pub fn film_aovs(&self) -> AovSet {
+        match self.adaptive {
+            Some(_) => self.aovs.with(crate::scene::Aov::Variance),
+            None => self.aovs,
         }
     }
 
@@ -212,7 +226,8 @@ impl RenderSettings {
         let pixels = self.width as u64 * self.height as u64;
         let paths = (self.threads as u64).saturating_mul(self.batch_size.div_ceil(8) as u64 * 8);
         MemoryEstimate {
-            film: pixels.saturating_mul(FILM_BYTES_PER_PIXEL + aov_bytes_per_pixel(self.aovs)),
+            film: pixels
+                .saturating_mul(FILM_BYTES_PER_PIXEL + aov_bytes_per_pixel(self.film_aovs())),
             queues: paths.saturating_mul(QUEUE_BYTES_PER_PATH),
             bvh: (triangles as u64).saturating_mul(BVH_BYTES_PER_TRIANGLE),
         }
@@ -323,6 +338,20 @@ impl RenderSettings {
                 self.simd.name()
             )));
         }
+        if let Some(a) = self.adaptive {
+            if !(a.threshold >= 0.0 && a.threshold.is_finite()) {
+                return Err(Error::Settings(format!(
+                    "the noise threshold must be a number at least 0, not {}",
+                    a.threshold
+                )));
+            }
+            if a.min_spp > self.spp || (a.min_spp < 2 && a.min_spp < self.spp) {
+                return Err(Error::Settings(format!(
+                    "adaptive sampling's first round (min_spp {}) must take between 2 and the {} samples per pixel",
+                    a.min_spp, self.spp
+                )));
+            }
+        }
         if self.max_depth > MAX_DEPTH {
             return Err(Error::Settings(format!(
                 "max depth must be at most {MAX_DEPTH} (the reference tracer recurses once per bounce)"
@@ -351,6 +380,12 @@ impl RenderSettings {
             h.update(self.integrator.name().as_bytes());
             h.update(self.sampler.name().as_bytes());
             h.update(&self.rr_depth.map_or(u32::MAX, |d| d).to_le_bytes());
+        }
+        // Without adaptive sampling, the hash of before it existed.
+        if let Some(a) = self.adaptive {
+            h.update(b"adaptive");
+            h.update(&a.threshold.to_le_bytes());
+            h.update(&a.min_spp.to_le_bytes());
         }
         h.digest128()
     }
@@ -411,15 +446,24 @@ impl Renderer {
         let options = BvhOptions {
             width: settings.simd,
         };
-        let bvh = Arc::new(pool.install(|| crate::accel::scene_bvh(scene, &options)));
+        // The engine's tables and lights are built while the hierarchy is
+        // (they need neither it nor each other): a build that keeps one
+        // thread busy leaves the other to them.
+        let (bvh, data) = pool.install(|| {
+            rayon::join(
+                || crate::accel::scene_bvh(scene, &options),
+                || SceneData::new(scene),
+            )
+        });
+        let bvh = Arc::new(bvh);
         let estimator = settings.estimator();
         let engine = match settings.engine {
             Engine::Reference => EngineState::Reference(
-                ReferenceTracer::with_bvh(scene, settings.max_depth, bvh.clone())
+                ReferenceTracer::with_data(scene, data, settings.max_depth, bvh.clone())
                     .with_estimator(estimator),
             ),
             Engine::Wavefront => {
-                EngineState::Wavefront(WavefrontEngine::new(scene, estimator, bvh.clone()))
+                EngineState::Wavefront(WavefrontEngine::with_data(data, estimator, bvh.clone()))
             }
         };
         let frame = Frame {
@@ -484,7 +528,7 @@ impl Renderer {
     /// A new, empty film of the right size, with the settings' AOVs.
     pub fn new_film(&self) -> Film {
         let s = &self.settings;
-        Film::with_aovs(s.width, s.height, s.aovs)
+        Film::with_aovs(s.width, s.height, s.film_aovs())
     }
 
     /// Add samples `range` of every pixel to `film` (which must have the
@@ -492,7 +536,7 @@ impl Renderer {
     pub fn render_samples(&self, range: Range<u32>, film: &mut Film) -> Counters {
         self.check_film(film);
         let sums = (&mut film.sums[..], &mut film.aov);
-        let (counters, complete) = self.render_sums(range.clone(), sums, &|| false);
+        let (counters, complete) = self.render_sums(range.clone(), sums, None, &|| false);
         assert!(complete, "nothing asked to stop");
         film.add_range(range);
         film.invalid_samples += counters.invalid_samples;
@@ -510,11 +554,25 @@ impl Renderer {
         film: &mut Film,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Option<Counters> {
+        let counters = self.render_pass(range.clone(), None, film, stop)?;
+        film.add_range(range);
+        Some(counters)
+    }
+
+    /// Add samples `range` of the pixels `active` marks (all: `None`) to
+    /// `film`'s sums, or nothing if `stop()` ends the pass.
+    fn render_pass(
+        &self,
+        range: Range<u32>,
+        active: Option<&[bool]>,
+        film: &mut Film,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Counters> {
         self.check_film(film);
         let mut pass = vec![[0u128; 3]; film.sums.len()];
         let mut pass_aov = AovSums::new(film.aovs(), film.sums.len());
         let (counters, complete) =
-            self.render_sums(range.clone(), (&mut pass, &mut pass_aov), stop);
+            self.render_sums(range, (&mut pass, &mut pass_aov), active, stop);
         if !complete {
             return None;
         }
@@ -524,8 +582,41 @@ impl Renderer {
             }
         }
         film.aov.add(&pass_aov);
-        film.add_range(range);
         film.invalid_samples += counters.invalid_samples;
+        Some(counters)
+    }
+
+    /// Render the settings' `spp` samples with adaptive sampling
+    /// ([`Adaptive`]; the settings must have it) into `film`, new and
+    /// empty: every pixel's first `min_spp` samples, then rounds that
+    /// double the samples of the pixels still noisy. The film records each
+    /// pixel's count ([`Film::counts`]). `None` (the film then holds
+    /// nothing usable) when `stop()` ended it.
+    pub fn render_adaptive_or_stop(
+        &self,
+        film: &mut Film,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Counters> {
+        let a = self.settings.adaptive.expect("adaptive settings");
+        let (spp, (w, h)) = (self.settings.spp, (film.width, film.height));
+        let first = a.min_spp.clamp(1, spp);
+        let mut counters = self.render_samples_or_stop(0..first, film, stop)?;
+        let mut counts = vec![first; film.sums.len()];
+        let mut n = first;
+        while n < spp {
+            let next = n.saturating_mul(2).min(spp);
+            let errors = pixel_errors(film, &counts);
+            let active = still_noisy(&errors, &counts, n, a.threshold, (w, h));
+            if !active.contains(&true) {
+                break;
+            }
+            counters += self.render_pass(n..next, Some(&active), film, stop)?;
+            for (c, _) in counts.iter_mut().zip(&active).filter(|(_, a)| **a) {
+                *c = next;
+            }
+            n = next;
+        }
+        film.counts = Some(counts);
         Some(counters)
     }
 
@@ -534,7 +625,7 @@ impl Renderer {
             (film.width, film.height),
             (self.settings.width, self.settings.height)
         );
-        assert_eq!(film.aovs(), self.settings.aovs, "the film's AOVs");
+        assert_eq!(film.aovs(), self.settings.film_aovs(), "the film's AOVs");
     }
 
     /// Add samples `range` of every pixel to `sums` (radiance, AOVs), a
@@ -545,6 +636,7 @@ impl Renderer {
         &self,
         range: Range<u32>,
         sums: (&mut [PixelSum], &mut AovSums),
+        active: Option<&[bool]>,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> (Counters, bool) {
         let skipped = AtomicBool::new(false);
@@ -558,9 +650,9 @@ impl Renderer {
         let seed = self.settings.seed;
         let counters = match self.settings.sampler {
             SamplerKind::Independent => {
-                self.render_tiles(&Independent::new(seed), range, sums, &go)
+                self.render_tiles(&Independent::new(seed), range, sums, active, &go)
             }
-            SamplerKind::Sobol => self.render_tiles(&Sobol::new(seed), range, sums, &go),
+            SamplerKind::Sobol => self.render_tiles(&Sobol::new(seed), range, sums, active, &go),
         };
         (counters, !skipped.load(Ordering::Relaxed))
     }
@@ -571,6 +663,7 @@ impl Renderer {
         sampler: &S,
         range: Range<u32>,
         (sums, aov): (&mut [PixelSum], &mut AovSums),
+        active: Option<&[bool]>,
         go: &(dyn Fn() -> bool + Sync),
     ) -> Counters
     where
@@ -585,9 +678,11 @@ impl Renderer {
                 .filter(|_| go())
                 .map(|(i, (sums, aov))| {
                     let start = (i * tile) as u32;
+                    let pixels = start..start + sums.len() as u32;
                     let mut job = TileJob {
                         frame: &self.frame,
-                        pixels: start..start + sums.len() as u32,
+                        active: active.map(|a| &a[pixels.start as usize..pixels.end as usize]),
+                        pixels,
                         samples: range.clone(),
                         sums,
                         aov,
@@ -631,6 +726,47 @@ impl Renderer {
         let counters = self.render_samples(0..self.settings.spp, &mut film);
         (film, counters, start.elapsed())
     }
+}
+
+/// Each pixel's error as [`Adaptive`] defines it, from `film`'s sums
+/// and sums of squares, pixel `i` holding `counts[i]` samples.
+fn pixel_errors(film: &Film, counts: &[u32]) -> Vec<f32> {
+    let squares = film.aov.squares(crate::scene::Aov::Variance);
+    (film.sums.iter().zip(squares).zip(counts))
+        .map(|((sum, sq), &n)| {
+            let n = f64::from(n);
+            let e2: f64 = (0..3)
+                .map(|k| {
+                    let m = sum[k] as f64 / (n * crate::film::FIXED_POINT_SCALE);
+                    let var = f64::from(crate::film::aov::variance(n, sum[k], sq[k]));
+                    var / n / (m * m + 0.01)
+                })
+                .sum();
+            (e2 / 3.0).sqrt() as f32
+        })
+        .collect()
+}
+
+/// The pixels that take the next round: those that took every round so
+/// far (`n` samples) and have a pixel of error above `threshold` among
+/// themselves and their eight neighbours.
+fn still_noisy(
+    errors: &[f32],
+    counts: &[u32],
+    n: u32,
+    threshold: f32,
+    (w, h): (u32, u32),
+) -> Vec<bool> {
+    let (w, h) = (w as usize, h as usize);
+    let noisy: Vec<bool> = errors.iter().map(|&e| e > threshold).collect();
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            counts[i] == n
+                && (y.saturating_sub(1)..(y + 2).min(h))
+                    .any(|y| (x.saturating_sub(1)..(x + 2).min(w)).any(|x| noisy[y * w + x]))
+        })
+        .collect()
 }
 
 /// Pixels per tile (a unit of work for a thread): about one batch of

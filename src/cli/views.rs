@@ -107,6 +107,12 @@ pub struct ViewsArgs {
     /// Denoise the colour (Open Image Denoise).
     #[arg(long, help_heading = "Job from flags")]
     pub denoise: bool,
+    /// Adaptive sampling: a pixel stops taking samples once its estimated relative error is at most this (e.g. 0.02).
+    #[arg(long, value_name = "ERROR", help_heading = "Job from flags")]
+    pub noise_threshold: Option<f32>,
+    /// With --noise-threshold: the samples every pixel takes first [default: spp/16, at least 4].
+    #[arg(long, value_name = "N", help_heading = "Job from flags")]
+    pub min_spp: Option<u32>,
 
     /// Render shard I of N (from 0) of the (asset, view) pairs, or `auto` from Slurm or Kubernetes.
     #[arg(long, value_name = "I/N|auto", value_parser = ShardSpec::parse, help_heading = "Farm")]
@@ -129,6 +135,37 @@ pub struct ViewsArgs {
 }
 
 impl ViewsArgs {
+    /// `--noise-threshold` and `--min-spp`, checked as a job file's
+    /// `render.noise_threshold` and `render.min_spp` are.
+    fn adaptive(&self) -> Result<Option<crate::scene::Adaptive>> {
+        let spp = self.spp.unwrap_or(DEFAULT_SPP);
+        let Some(threshold) = self.noise_threshold else {
+            return match self.min_spp {
+                Some(_) => Err(Error::Settings(
+                    "--min-spp is the first round of adaptive sampling: give --noise-threshold too"
+                        .into(),
+                )),
+                None => Ok(None),
+            };
+        };
+        let a = crate::scene::Adaptive {
+            threshold,
+            min_spp: (self.min_spp).unwrap_or(crate::scene::Adaptive::default_min_spp(spp)),
+        };
+        if !(threshold >= 0.0 && threshold.is_finite()) {
+            return Err(Error::Settings(format!(
+                "--noise-threshold {threshold}: must be a number at least 0"
+            )));
+        }
+        if a.min_spp > spp || (a.min_spp < 2 && a.min_spp < spp) {
+            return Err(Error::Settings(format!(
+                "--min-spp {}: must be between 2 and --spp ({spp})",
+                a.min_spp
+            )));
+        }
+        Ok(Some(a))
+    }
+
     /// Whether any flag of the job-from-flags group is set.
     fn job_flags(&self) -> Vec<&'static str> {
         let set = [
@@ -150,6 +187,8 @@ impl ViewsArgs {
             (self.aov.is_some(), "--aov"),
             (self.exr, "--exr"),
             (self.denoise, "--denoise"),
+            (self.noise_threshold.is_some(), "--noise-threshold"),
+            (self.min_spp.is_some(), "--min-spp"),
         ];
         set.iter().filter(|(on, _)| *on).map(|(_, f)| *f).collect()
     }
@@ -264,6 +303,7 @@ impl ViewsArgs {
                 integrator: self.integrator,
                 seed: self.seed.unwrap_or(0),
                 denoise: self.denoise,
+                adaptive: self.adaptive()?,
             },
             outputs: ViewsOutputs {
                 png: true,

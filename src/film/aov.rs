@@ -30,7 +30,7 @@
 //! variance `s² = (Σx² − (Σx)²/n) / (n − 1)` per channel, computed in
 //! `f64` from the exact sums and clamped at 0 (0 for `n < 2`).
 
-use super::{FIXED_POINT_SCALE, MAX_SAMPLE, PixelSum};
+use super::{FIXED_POINT_SCALE, MAX_SAMPLE, PixelSum, Samples};
 use crate::scene::aov::Sum;
 use crate::scene::{Aov, AovSet};
 
@@ -199,23 +199,22 @@ impl Column {
     /// The image (three channels per pixel; one value repeated for the
     /// kinds of one) of a film of `samples` samples per pixel whose
     /// radiance sums are `radiance`.
-    fn image(&self, samples: u64, radiance: &[PixelSum]) -> Vec<[f32; 3]> {
-        let n = samples as f64;
-        let mean = (n.max(1.0)) * FIXED_POINT_SCALE;
+    fn image(&self, samples: Samples, radiance: &[PixelSum]) -> Vec<[f32; 3]> {
+        let n = |i: usize| samples.of(i) as f64;
+        let mean = |i: usize| n(i).max(1.0) * FIXED_POINT_SCALE;
         match self {
-            Column::Mean(c) => c
-                .iter()
-                .map(|s| s.map(|c| (c as f64 / mean) as f32))
+            Column::Mean(c) => (c.iter().enumerate())
+                .map(|(i, s)| s.map(|c| (c as f64 / mean(i)) as f32))
                 .collect(),
             Column::HitMean(c) => c.iter().map(|d| [d.mean(); 3]).collect(),
-            Column::Count(c) => (c.iter())
-                .map(|&h| [(h as f64 / n.max(1.0)) as f32; 3])
+            Column::Count(c) => (c.iter().enumerate())
+                .map(|(i, &h)| [(h as f64 / n(i).max(1.0)) as f32; 3])
                 .collect(),
-            Column::Votes(c) => (c.iter())
-                .map(|c| [majority(samples, c) as f32; 3])
+            Column::Votes(c) => (c.iter().enumerate())
+                .map(|(i, c)| [majority(samples.of(i), c) as f32; 3])
                 .collect(),
-            Column::Squares(c) => (c.iter().zip(radiance))
-                .map(|(sq, sum)| std::array::from_fn(|k| variance(n, sum[k], sq[k])))
+            Column::Squares(c) => (c.iter().zip(radiance).enumerate())
+                .map(|(i, (sq, sum))| std::array::from_fn(|k| variance(n(i), sum[k], sq[k])))
                 .collect(),
         }
     }
@@ -485,9 +484,9 @@ impl AovSums {
 
     /// The AOVs' images (row-major, three channels each; depth, alpha,
     /// zdepth and object_id repeat their one value), in canonical order,
-    /// for a film of `samples` samples per pixel whose radiance sums are
-    /// `radiance`. An object id is exact as an `f32` up to 2²⁴.
-    pub fn images(&self, samples: u64, radiance: &[PixelSum]) -> Vec<(Aov, Vec<[f32; 3]>)> {
+    /// for a film whose pixels hold `samples` samples and whose radiance
+    /// sums are `radiance`. An object id is exact as an `f32` up to 2²⁴.
+    pub fn images(&self, samples: Samples, radiance: &[PixelSum]) -> Vec<(Aov, Vec<[f32; 3]>)> {
         (self.columns.iter())
             .map(|(aov, c)| (*aov, c.image(samples, radiance)))
             .collect()
@@ -532,7 +531,7 @@ impl DepthSum {
 
 /// The unbiased sample variance of `n` samples from the fixed-point sums
 /// of the samples and of their squares (0 for `n < 2`; never negative).
-fn variance(n: f64, sum: u128, squares: u128) -> f32 {
+pub(crate) fn variance(n: f64, sum: u128, squares: u128) -> f32 {
     if n < 2.0 {
         return 0.0;
     }

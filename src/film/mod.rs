@@ -158,6 +158,32 @@ pub struct Film {
     pub invalid_samples: u64,
     /// The sums of the AOVs the film holds (none by default).
     pub aov: AovSums,
+    /// How many samples each pixel holds, where that differs from pixel
+    /// to pixel (an adaptive render, [`crate::render::Adaptive`]: pixel
+    /// `i` holds samples `0..counts[i]`, and `ranges` the samples every
+    /// pixel holds); `None`: every pixel holds `ranges`.
+    pub counts: Option<Vec<u32>>,
+}
+
+/// How many samples the pixels of a film hold: as many each, or each its
+/// own count.
+#[derive(Clone, Copy, Debug)]
+pub enum Samples<'a> {
+    /// Every pixel holds this many.
+    Every(u64),
+    /// Pixel `i` holds `counts[i]`.
+    Each(&'a [u32]),
+}
+
+impl Samples<'_> {
+    /// How many samples pixel `i` holds.
+    #[inline]
+    pub fn of(&self, i: usize) -> u64 {
+        match self {
+            Samples::Every(n) => *n,
+            Samples::Each(c) => u64::from(c[i]),
+        }
+    }
 }
 
 impl Film {
@@ -176,6 +202,7 @@ impl Film {
             ranges: Vec::new(),
             invalid_samples: 0,
             aov: AovSums::new(aovs, pixels),
+            counts: None,
         }
     }
 
@@ -187,12 +214,21 @@ impl Film {
     /// The images of the AOVs this film holds, in canonical order
     /// ([`Aov::ALL`]; see [`aov`] for what each pixel is).
     pub fn aov_images(&self) -> Vec<(Aov, Vec<[f32; 3]>)> {
-        self.aov.images(self.samples_per_pixel(), &self.sums)
+        self.aov.images(self.samples(), &self.sums)
+    }
+
+    /// How many samples every pixel holds (at least: an adaptive render's
+    /// pixels may hold more, [`samples`](Self::samples)).
+    pub fn samples_per_pixel(&self) -> u64 {
+        self.ranges.iter().map(|r| (r.end - r.start) as u64).sum()
     }
 
     /// How many samples each pixel holds.
-    pub fn samples_per_pixel(&self) -> u64 {
-        self.ranges.iter().map(|r| (r.end - r.start) as u64).sum()
+    pub fn samples(&self) -> Samples<'_> {
+        match &self.counts {
+            Some(c) => Samples::Each(c),
+            None => Samples::Every(self.samples_per_pixel()),
+        }
     }
 
     /// Record that every pixel now also holds the samples in `range`.
@@ -225,10 +261,12 @@ impl Film {
 
     /// The mean radiance of every pixel, row-major, as linear RGB `f32`.
     pub fn to_rgb(&self) -> Vec<[f32; 3]> {
-        let n = self.samples_per_pixel().max(1) as f64 * FIXED_POINT_SCALE;
-        self.sums
-            .iter()
-            .map(|s| s.map(|c| (c as f64 / n) as f32))
+        let samples = self.samples();
+        (self.sums.iter().enumerate())
+            .map(|(i, s)| {
+                let n = samples.of(i).max(1) as f64 * FIXED_POINT_SCALE;
+                s.map(|c| (c as f64 / n) as f32)
+            })
             .collect()
     }
 
@@ -250,6 +288,9 @@ impl Film {
                 theirs: other.aovs(),
                 ours: self.aovs(),
             });
+        }
+        if self.counts.is_some() || other.counts.is_some() {
+            return Err(MergeError::Adaptive);
         }
         if let Some((theirs, ours)) = ranges::first_overlap(&other.ranges, &self.ranges) {
             return Err(MergeError::Overlap { theirs, ours });
@@ -301,6 +342,10 @@ pub enum MergeError {
         /// The range of the receiving film it overlaps.
         ours: Range<u32>,
     },
+    /// A film of an adaptive render, whose pixels hold samples of their
+    /// own.
+    #[error("an adaptive render's film (pixels of their own sample counts) cannot be combined")]
+    Adaptive,
 }
 
 #[cfg(test)]

@@ -56,6 +56,13 @@ impl Film {
     /// [`Film::save`] with the optional facts of [`AccMeta`] (the whole
     /// render's sample count, the shard) in the header as well.
     pub fn save_with_meta(&self, path: &Path, meta: &AccMeta) -> Result<(), FileError> {
+        if self.counts.is_some() {
+            let why = "an adaptive render's film (pixels of their own sample counts) has no accumulation file";
+            return Err(FileError::new(
+                path,
+                std::io::Error::new(std::io::ErrorKind::InvalidInput, why),
+            ));
+        }
         // Version 1 when there is no AOV: the same bytes as before AOVs.
         let version = if self.aov.is_empty() { 1 } else { 2 };
         let header = AccHeader {
@@ -269,6 +276,7 @@ impl Film {
             ranges,
             invalid_samples: header.invalid_samples,
             aov,
+            counts: None,
         };
         if let Some(spp) = header.spp
             && let Some(last) = film.ranges.last()

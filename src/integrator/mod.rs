@@ -34,8 +34,29 @@ pub mod texture;
 pub mod wavefront;
 
 use crate::film::{AovSample, AovTile, PixelSum, accumulate_with_aovs};
+use crate::scene::Scene;
 use crate::scene::camera::RasterCamera;
 use std::ops::Range;
+
+/// What both engines make of a scene besides its hierarchy: its columns
+/// ([`tables::Tables`]) and its lights ([`lights::Lights`]). Neither needs
+/// the other nor the hierarchy, so all three can be built side by side.
+pub struct SceneData {
+    /// The scene's primitives and materials, as columns.
+    pub tables: tables::Tables,
+    /// The emitters and the environment, for light sampling.
+    pub lights: lights::Lights,
+}
+
+impl SceneData {
+    /// The tables and the lights of `scene`, built side by side on the
+    /// current rayon pool (each is a pure function of the scene).
+    pub fn new(scene: &Scene) -> Self {
+        let (tables, lights) =
+            rayon::join(|| tables::Tables::new(scene), || lights::Lights::new(scene));
+        Self { tables, lights }
+    }
+}
 
 /// What every tile of a render shares: the camera at the render's size,
 /// the seed and the batch size.
@@ -66,9 +87,21 @@ pub struct TileJob<'a> {
     pub sums: &'a mut [PixelSum],
     /// The pixels' AOV sums (every column empty when the render has none).
     pub aov: AovTile<'a>,
+    /// Which of the pixels take the samples (one flag per pixel of the
+    /// run; `None`: all of them): a round of adaptive sampling
+    /// ([`crate::render::Adaptive`]) traces only the pixels still noisy.
+    pub active: Option<&'a [bool]>,
 }
 
 impl TileJob<'_> {
+    /// Whether pixel `pixel` (a row-major index within the tile) takes the
+    /// job's samples.
+    #[inline]
+    pub fn is_active(&self, pixel: u32) -> bool {
+        self.active
+            .is_none_or(|a| a[(pixel - self.pixels.start) as usize])
+    }
+
     /// The sums of pixel `pixel` (a row-major index within the tile).
     #[inline]
     pub fn sum_of(&mut self, pixel: u32) -> &mut PixelSum {

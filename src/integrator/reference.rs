@@ -40,7 +40,7 @@ use crate::integrator::nee::{
 use crate::integrator::offset::spawn;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
-use crate::integrator::{Counters, TileJob};
+use crate::integrator::{Counters, SceneData, TileJob};
 use crate::math::V3;
 use crate::scene::aov::When;
 use crate::scene::camera::RasterCamera;
@@ -103,6 +103,19 @@ impl ReferenceTracer {
     /// Turn the environment to `rotation_deg` ([`Lights::turn_environment`]).
     pub fn turn_environment(&mut self, rotation_deg: f32) {
         self.lights.turn_environment(rotation_deg);
+    }
+
+    /// [`with_bvh`](Self::with_bvh) over a scene's prepared tables and
+    /// lights ([`SceneData::new`], which can be built beside the
+    /// hierarchy).
+    pub fn with_data(scene: &Scene, data: SceneData, max_depth: u32, bvh: Arc<Bvh>) -> Self {
+        Self {
+            accel: Accel::Bvh(bvh),
+            tables: data.tables,
+            materials: scene.materials.clone(),
+            estimator: Estimator::report(max_depth),
+            lights: data.lights,
+        }
     }
 
     fn with_accel(scene: &Scene, max_depth: u32, accel: Accel) -> Self {
@@ -357,6 +370,9 @@ impl ReferenceTracer {
         let mut c = Counters::default();
         let aovs = job.has_aovs();
         for pixel in job.pixels.clone() {
+            if !job.is_active(pixel) {
+                continue;
+            }
             let xy = job.xy(pixel);
             for sample in job.samples.clone() {
                 let camera = &job.frame.camera;

@@ -110,7 +110,7 @@ pub fn merge_files(paths: &[PathBuf], spp: Option<u32>, allow_partial: bool) -> 
                     MergeError::Aovs { .. } => {
                         bad(format!("{e} (those of {})", first_path.display()))
                     }
-                    MergeError::Overlap { .. } => bad(e.to_string()),
+                    MergeError::Overlap { .. } | MergeError::Adaptive => bad(e.to_string()),
                 })?;
             }
         }

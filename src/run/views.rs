@@ -634,6 +634,7 @@ impl AssetWork<'_> {
         s.engine = self.options.engine;
         s.batch_size = self.options.batch_size.unwrap_or(s.batch_size);
         s.aovs = self.job.outputs.aovs;
+        s.adaptive = r.adaptive;
         // A transparent background — the asset's own, or any of the job's
         // environments (`visible = false`) — writes the coverage as the
         // colour's alpha, as `render` does.
@@ -717,6 +718,10 @@ impl AssetWork<'_> {
                 normalisation: view.n,
                 film: &film,
                 aovs: (aovs.iter())
+                    // (Adaptive sampling's variance only where it was asked for.)
+                    .filter(|(aov, _)| {
+                        *aov != Aov::Variance || self.job.outputs.aovs.contains(Aov::Variance)
+                    })
                     .map(|(aov, pixels)| (*aov, self.in_job_world(*aov, pixels, view)))
                     .collect(),
                 rgb: &rgb,
@@ -796,6 +801,14 @@ impl AssetWork<'_> {
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(crate::film::Film, u64, crate::integrator::Counters)>> {
         let spp = self.job.render.spp;
+        if renderer.settings().adaptive.is_some() {
+            // Each round's pixels follow from the whole film so far: an
+            // adaptive view keeps no checkpoint (a stopped one starts
+            // again).
+            let mut film = renderer.new_film();
+            let traced = renderer.render_adaptive_or_stop(&mut film, stop);
+            return Ok(traced.map(|t| (film, 0, t)));
+        }
         let path = self.checkpoint_path(view.index);
         let mut h = xxhash_rust::xxh3::Xxh3::new();
         for part in [self.job_hash, view.asset_hash, u128::from(view.index)] {

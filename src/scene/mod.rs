@@ -32,7 +32,7 @@ pub use aov::{Aov, AovDef, AovSet};
 pub use builder::{Origin, SceneBuilder, SceneError};
 pub use light_check::{LightWarning, UnreachedLights};
 pub use material::{Material, Model};
-pub use options::{Integrator, RenderOptions, SamplerKind};
+pub use options::{Adaptive, Integrator, RenderOptions, SamplerKind};
 
 /// The source of the built-in default scene, `scenes/cornell.toml`.
 pub const CORNELL_TOML: &str = include_str!("../../scenes/cornell.toml");

@@ -95,3 +95,33 @@ pub struct RenderOptions {
     /// has more than 16 emitters, docs/lights.md).
     pub light_tree: Option<bool>,
 }
+
+/// Adaptive sampling: every pixel takes [`min_spp`](Self::min_spp)
+/// samples; then, in rounds that double the samples of the pixels still
+/// taking them (up to `spp`), a pixel stops once its estimated error and
+/// that of each of its eight neighbours is at most
+/// [`threshold`](Self::threshold). The error of a pixel of `n` samples
+/// is the root of the relMSE its mean is expected to have: over the three
+/// channels, the mean of `s²/n / (m² + 0.01)` (`m` the channel's mean,
+/// `s²` its sample variance), the measure of wavetrace's relMSE. Every
+/// decision is made from the film's exact sums between rounds, so an
+/// adaptive render is as reproducible as any other: the same bytes
+/// whatever the threads, batch size or kernel width. (The render layer
+/// does the rounds: `Renderer::render_adaptive_or_stop`.)
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Adaptive {
+    /// The error at which a pixel stops (0: never; every pixel takes all
+    /// `spp` samples, the bytes of a render without adaptive sampling).
+    pub threshold: f32,
+    /// The samples every pixel takes first (at least 2: a variance needs
+    /// two).
+    pub min_spp: u32,
+}
+
+impl Adaptive {
+    /// The default first round: a sixteenth of `spp`, at least 4 (and at
+    /// most `spp`).
+    pub fn default_min_spp(spp: u32) -> u32 {
+        (spp / 16).max(4).min(spp)
+    }
+}

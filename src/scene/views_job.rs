@@ -5,7 +5,7 @@
 //! path, and the field. The format is described in `docs/views.md`.
 
 use super::environment::{self, Environment, EnvironmentFile};
-use super::{AovSet, Integrator, SceneError};
+use super::{Adaptive, AovSet, Integrator, SceneError};
 use glam::Vec3;
 use serde::Deserialize;
 use std::ops::Range;
@@ -55,7 +55,7 @@ pub struct ViewsJob {
 }
 
 /// The render settings of a job's views.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct ViewsRender {
     /// Image width in pixels.
     pub width: u32,
@@ -72,6 +72,29 @@ pub struct ViewsRender {
     pub seed: u64,
     /// Denoise the colour image (Open Image Denoise).
     pub denoise: bool,
+    /// Adaptive sampling (`noise_threshold`, `min_spp`); `None`: every
+    /// pixel takes `spp` samples.
+    pub adaptive: Option<Adaptive>,
+}
+
+/// The job's hash ([`ViewsJob::settings_hash`]) is of these words: a job
+/// without adaptive sampling writes the words of before it existed (its
+/// views keep their seeds and bytes).
+impl std::fmt::Debug for ViewsRender {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("ViewsRender");
+        d.field("width", &self.width)
+            .field("height", &self.height)
+            .field("spp", &self.spp)
+            .field("max_depth", &self.max_depth)
+            .field("integrator", &self.integrator)
+            .field("seed", &self.seed)
+            .field("denoise", &self.denoise);
+        if let Some(a) = &self.adaptive {
+            d.field("adaptive", a);
+        }
+        d.finish()
+    }
 }
 
 /// What each view of a job writes.
@@ -336,6 +359,8 @@ struct RenderFile {
     seed: Option<u64>,
     #[serde(default)]
     denoise: bool,
+    noise_threshold: Option<Spanned<f32>>,
+    min_spp: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]
@@ -778,6 +803,7 @@ fn render(t: &Text, raw: Option<&RenderFile>) -> Result<ViewsRender, SceneError>
         integrator: None,
         seed: 0,
         denoise: false,
+        adaptive: None,
     };
     let Some(r) = raw else {
         return Ok(out);
@@ -810,7 +836,48 @@ fn render(t: &Text, raw: Option<&RenderFile>) -> Result<ViewsRender, SceneError>
     out.max_depth = r.max_depth;
     out.seed = r.seed.unwrap_or(0);
     out.denoise = r.denoise;
+    out.adaptive = adaptive(t, r, out.spp)?;
     Ok(out)
+}
+
+/// `render.noise_threshold` and `render.min_spp`: adaptive sampling.
+fn adaptive(t: &Text, r: &RenderFile, spp: u32) -> Result<Option<Adaptive>, SceneError> {
+    let Some(threshold) = &r.noise_threshold else {
+        if let Some(m) = &r.min_spp {
+            return Err(t.err(
+                m.span(),
+                "render.min_spp",
+                "is the first round of adaptive sampling: set render.noise_threshold too",
+            ));
+        }
+        return Ok(None);
+    };
+    let th = *threshold.get_ref();
+    if !(th >= 0.0 && th.is_finite()) {
+        return Err(t.err(
+            threshold.span(),
+            "render.noise_threshold",
+            "must be a number at least 0 (0: every pixel takes every sample)",
+        ));
+    }
+    let min_spp = match &r.min_spp {
+        Some(m) => {
+            let v = *m.get_ref();
+            if v > spp || (v < 2 && v < spp) {
+                return Err(t.err(
+                    m.span(),
+                    "render.min_spp",
+                    format!("must be between 2 and render.spp ({spp})"),
+                ));
+            }
+            v
+        }
+        None => Adaptive::default_min_spp(spp),
+    };
+    Ok(Some(Adaptive {
+        threshold: th,
+        min_spp,
+    }))
 }
 
 fn outputs(t: &Text, raw: Option<&OutputsFile>) -> Result<ViewsOutputs, SceneError> {

@@ -8,7 +8,7 @@ use std::ops::Range;
 use wide::f32x8;
 
 /// Fill `queue` with the camera ray of every (pixel, sample) pair of the
-/// batch: pixels `pixels` (row-major indices) times samples `samples`,
+/// batch: pixels `pixels` (row-major indices, ascending) times samples `samples`,
 /// pixel-major. Each path starts its numbers; the first two place the ray
 /// in its pixel — exactly as the reference does. AOV columns, if any,
 /// start empty.
@@ -16,7 +16,7 @@ pub fn generate<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     ctx: &Ctx<S>,
     frame: &Frame,
-    pixels: Range<u32>,
+    pixels: &[u32],
     samples: Range<u32>,
 ) {
     camera_rays(queue, ctx.sampler, frame, (pixels, samples));
@@ -29,7 +29,7 @@ fn camera_rays<S: Sampler>(
     queue: &mut PathQueue<S::Path>,
     sampler: &S,
     frame: &Frame,
-    (pixels, samples): (Range<u32>, Range<u32>),
+    (pixels, samples): (&[u32], Range<u32>),
 ) {
     let n = pixels.len() * samples.len();
     queue.set_len(n);
@@ -46,7 +46,7 @@ fn camera_rays<S: Sampler>(
     let rows = pixel_col
         .chunks_mut(samples.len())
         .zip(sampler_col.chunks_mut(samples.len()));
-    for (pixel, (p, s)) in pixels.zip(rows) {
+    for (&pixel, (p, s)) in pixels.iter().zip(rows) {
         p.fill(pixel);
         for (s, sample) in s.iter_mut().zip(samples.clone()) {
             *s = sampler.start(pixel, sample);
@@ -59,12 +59,17 @@ fn camera_rays<S: Sampler>(
     for i in (0..n).step_by(8) {
         let lanes = (n - i).min(8);
         let [ux, uy] = sampler.next_2d_8(&mut sampler_col[i..i + lanes]);
-        // The group's pixels follow one another from its first: one
-        // division for the group, then steps along the row.
+        // The group's pixels ascend from its first: one division for the
+        // group, then steps along the rows (a pixel skipped by adaptive
+        // sampling may leave a gap of a row or more: then its own division).
         let first = pixel_col[i];
         let (x0, y0) = (first % frame.width, first / frame.width);
         let xy = |l: usize| {
-            let (mut x, mut y) = (x0 + (pixel_col[i + l.min(lanes - 1)] - first), y0);
+            let p = pixel_col[i + l.min(lanes - 1)];
+            let (mut x, mut y) = (x0 + (p - first), y0);
+            if x >= 2 * frame.width {
+                (x, y) = (p % frame.width, p / frame.width);
+            }
             while x >= frame.width {
                 (x, y) = (x - frame.width, y + 1);
             }

@@ -46,7 +46,7 @@ use crate::integrator::lights::Lights;
 use crate::integrator::nee::Estimator;
 use crate::integrator::sampler::Sampler;
 use crate::integrator::tables::Tables;
-use crate::integrator::{Counters, Stage, TileJob};
+use crate::integrator::{Counters, SceneData, Stage, TileJob};
 use crate::scene::{AovSet, Scene};
 use queue::PathQueue;
 use std::ops::Range;
@@ -97,9 +97,15 @@ impl WavefrontEngine {
     /// An engine for `scene` tracing paths by `estimator`, against `bvh`
     /// (built from [`crate::accel::scene_triangles`]).
     pub fn new(scene: &Scene, estimator: Estimator, bvh: Arc<Bvh>) -> Self {
+        Self::with_data(SceneData::new(scene), estimator, bvh)
+    }
+
+    /// An engine over a scene's prepared tables and lights
+    /// ([`SceneData::new`], which can be built beside the hierarchy).
+    pub fn with_data(data: SceneData, estimator: Estimator, bvh: Arc<Bvh>) -> Self {
         Self {
-            tables: Tables::new(scene),
-            lights: Lights::new(scene),
+            tables: data.tables,
+            lights: data.lights,
             bvh,
             estimator,
         }
@@ -116,8 +122,9 @@ impl WavefrontEngine {
         self.lights.turn_environment(rotation_deg);
     }
 
-    /// Render a tile, at most `frame.batch_size` paths at a time: whole
-    /// pixels per batch when they fit, else the pixel's samples split.
+    /// Render a tile's active pixels ([`TileJob::is_active`]), at most
+    /// `frame.batch_size` paths at a time: whole pixels per batch when
+    /// they fit, else the pixel's samples split.
     pub fn render_tile<S: Sampler>(
         &self,
         sampler: &S,
@@ -128,11 +135,10 @@ impl WavefrontEngine {
         let spp = job.samples.end - job.samples.start;
         // (`saturating_add`: ranges may end at u32::MAX.)
         let batch = u32::try_from(job.frame.batch_size).unwrap_or(u32::MAX);
-        let pixels_per_batch = (batch / spp.max(1)).max(1);
+        let pixels_per_batch = (batch / spp.max(1)).max(1) as usize;
         let samples_per_batch = spp.min(batch).max(1);
-        let mut pixel = job.pixels.start;
-        while pixel < job.pixels.end {
-            let pixels = pixel..pixel.saturating_add(pixels_per_batch).min(job.pixels.end);
+        let active: Vec<u32> = (job.pixels.clone()).filter(|&p| job.is_active(p)).collect();
+        for pixels in active.chunks(pixels_per_batch) {
             let mut s = job.samples.start;
             while s < job.samples.end {
                 let samples = s..s.saturating_add(samples_per_batch).min(job.samples.end);
@@ -140,12 +146,11 @@ impl WavefrontEngine {
                     sampler,
                     scratch,
                     job,
-                    (pixels.clone(), samples.clone()),
+                    (pixels, samples.clone()),
                     &mut counters,
                 );
                 s = samples.end;
             }
-            pixel = pixels.end;
         }
         counters
     }
@@ -156,7 +161,7 @@ impl WavefrontEngine {
         sampler: &S,
         scratch: &mut Scratch<S::Path>,
         job: &mut TileJob,
-        (pixels, samples): (Range<u32>, Range<u32>),
+        (pixels, samples): (&[u32], Range<u32>),
         counters: &mut Counters,
     ) {
         let Scratch { queue, shadows } = scratch;
