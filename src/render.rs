@@ -783,6 +783,26 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_noisy_pixel_keeps_its_neighbours_and_a_stopped_pixel_stays_stopped() {
+        // 5 x 4 pixels; one noisy pixel at (2, 1); pixel (3, 2) stopped in
+        // an earlier round (count 4 against 8).
+        let mut errors = vec![0.01f32; 20];
+        errors[5 + 2] = 0.5;
+        let mut counts = vec![8u32; 20];
+        counts[2 * 5 + 3] = 4;
+        let active = still_noisy(&errors, &counts, 8, 0.1, (5, 4));
+        let want: Vec<bool> = (0..20)
+            .map(|i| {
+                let (x, y) = (i % 5, i / 5);
+                (1..=3).contains(&x) && y <= 2 && (x, y) != (3, 2)
+            })
+            .collect();
+        assert_eq!(active, want);
+        // At the threshold is quiet enough.
+        assert!(!still_noisy(&[0.1; 4], &[8; 4], 8, 0.1, (2, 2)).contains(&true));
+    }
+
+    #[test]
     fn image_hash_follows_exactly_the_settings_that_change_bits() {
         let scene = Scene::cornell();
         let base = RenderSettings::for_scene(&scene);

@@ -63,7 +63,12 @@ def relmse(a, ref):
     return float(np.mean((a - ref) ** 2 / (ref**2 + 0.01)))
 
 
-def job_text(asset, a, spp, seed):
+def job_text(asset, a, spp, seed, adaptive=False):
+    extra = ""
+    if adaptive and a.noise_threshold is not None:
+        extra = f"noise_threshold = {a.noise_threshold}\n"
+        if a.min_spp is not None:
+            extra += f"min_spp = {min(a.min_spp, spp)}\n"
     return f"""[assets]
 files = ["{asset}"]
 normalize = false
@@ -86,18 +91,18 @@ height = {a.size}
 spp = {spp}
 seed = {seed}
 max_depth = {MAX_DEPTH}
-
+{extra}
 [outputs]
 color = ["exr"]
 """
 
 
-def wavetrace(a, asset, spp, seed, out):
+def wavetrace(a, asset, spp, seed, out, adaptive=False):
     # A fresh folder: `views` skips the views an earlier run finished there.
     shutil.rmtree(out, ignore_errors=True)
     job = out.with_suffix(".toml")
     job.parent.mkdir(parents=True, exist_ok=True)
-    job.write_text(job_text(asset, a, spp, seed))
+    job.write_text(job_text(asset, a, spp, seed, adaptive))
     t = time.perf_counter()
     subprocess.run(
         [a.wavetrace, "views", str(job), "--out-dir", str(out), "--threads", str(a.threads)],
@@ -120,7 +125,9 @@ def cycles(a, asset, transforms, spp, seed, out, adaptive=False):
         [sys.executable, str(HERE / "cycles_views.py"), "--glb", str(asset), "--env", str(ENV),
          "--rotation", str(ROTATION), "--transforms", str(transforms), "--out", str(out),
          "--spp", str(spp), "--bounces", str(MAX_DEPTH - 2), "--threads", str(a.threads),
-         "--seed", str(seed)] + (["--adaptive"] if adaptive else []),
+         "--seed", str(seed)]
+        + (["--adaptive", "--threshold", str(a.cycles_threshold),
+            "--min-samples", str(min(a.cycles_min_samples, spp))] if adaptive else []),
         check=True, capture_output=True, text=True,
     )
     seconds = time.perf_counter() - t
@@ -176,6 +183,14 @@ def main():
                         "(rendered afresh where missing): time the renders later, on a quiet machine")
     p.add_argument("--adaptive", action="store_true",
                    help="Cycles' adaptive sampling on (not for the references)")
+    p.add_argument("--cycles-threshold", type=float, default=0.01,
+                   help="with --adaptive: Cycles' noise threshold (its default 0.01)")
+    p.add_argument("--cycles-min-samples", type=int, default=0,
+                   help="with --adaptive: Cycles' minimum samples (0: its automatic choice)")
+    p.add_argument("--noise-threshold", type=float, default=None,
+                   help="wavetrace's adaptive sampling (render.noise_threshold) in the timed renders")
+    p.add_argument("--min-spp", type=int, default=None,
+                   help="with --noise-threshold: wavetrace's first round (render.min_spp)")
     a = p.parse_args()
     out = Path(a.out)
     counts = [int(s) for s in a.spp.split(",")]
@@ -200,7 +215,7 @@ def main():
         runs = {"wavetrace": [], "cycles": []}
         for spp in counts:
             print(f"{name}: {spp} spp", file=sys.stderr)
-            imgs, secs, _ = wavetrace(a, asset, spp, 1, out / name / f"wt-{spp}")
+            imgs, secs, _ = wavetrace(a, asset, spp, 1, out / name / f"wt-{spp}", adaptive=True)
             e = float(np.mean([relmse(x, r) for x, r in zip(imgs, wt_ref)]))
             runs["wavetrace"].append({"spp": spp, "relmse": e, "seconds_per_image": secs / a.views})
             imgs, secs, wall = cycles(a, asset, transforms, spp, 1, out / name / f"cy-{spp}", a.adaptive)

@@ -47,6 +47,8 @@ def parse():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--adaptive", action="store_true", help="Cycles' adaptive sampling (default off)")
+    p.add_argument("--threshold", type=float, default=0.01, help="with --adaptive: Cycles' noise threshold")
+    p.add_argument("--min-samples", type=int, default=0, help="with --adaptive: Cycles' minimum samples (0: automatic)")
     p.add_argument("--views", type=str, default="", help="comma-separated view indices (default all)")
     return p.parse_args()
 
@@ -62,6 +64,8 @@ def setup_scene(a):
     c.device = "CPU"
     c.samples = a.spp
     c.use_adaptive_sampling = a.adaptive
+    c.adaptive_threshold = a.threshold
+    c.adaptive_min_samples = a.min_samples
     c.use_denoising = False
     c.seed = a.seed
     c.max_bounces = a.bounces
