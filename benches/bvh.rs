@@ -43,6 +43,19 @@
 //! hit (single, batch) against occlusion (the same rays as shadow segments)
 //! at each width, in the summary and in the criterion group `spheres`.
 //! `WAVETRACE_BENCH_SPHERES=N` changes the count.
+//!
+//! `WAVETRACE_BENCH_ASSET=file.glb` prints, before anything else and then
+//! stops, what pre-splitting does to that asset's flattened scene
+//! (`Bvh::build_shapes_presplit` at shares 0, 0.1 and 0.25), at each
+//! width: build time (median of 3, all cores), packs, nodes, bytes, the
+//! tree's SAH cost, and the nodes, leaves and packs a walk visits per ray
+//! (`Bvh::walk_stats`) and M rays per CPU-second for three sets of rays:
+//! `camera` (64 × 64 pixels of each of 4 orbit views at 25° elevation,
+//! 40° field of view, framing the scene's bounding sphere, as the views
+//! jobs do), `bounce` (from each camera hit, a uniform direction on the
+//! side the ray came from) and `shadow` (from each camera hit towards a
+//! uniform direction of the upper hemisphere, occlusion, open-ended).
+//! The closest hits of both builds are checked equal.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
@@ -457,7 +470,179 @@ fn summary() {
     );
 }
 
+/// The rays of an asset's walk statistics: camera rays, bounces and
+/// shadow rays, with `t_min` (see the module doc).
+fn asset_rays(tris: &[TriangleEdges]) -> [(&'static str, Vec<(Vec3, Vec3)>); 3] {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for t in tris.iter().filter(|t| t.is_finite()) {
+        for v in [t.v0, t.v0 + t.e1, t.v0 + t.e2] {
+            (lo, hi) = (lo.min(v), hi.max(v));
+        }
+    }
+    let (c, r) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+    let half = 20f32.to_radians();
+    let dist = r / half.sin();
+    let bvh = Bvh::build(tris);
+    let mut g = Pcg64Mcg::new(0x000a_55e7);
+    let mut f = move || (g.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    let mut sphere = move || {
+        loop {
+            let v = Vec3::new(f(), f(), f()) * 2.0 - Vec3::ONE;
+            if (1e-6..=1.0).contains(&v.length_squared()) {
+                return v.normalize();
+            }
+        }
+    };
+    let (mut camera, mut bounce, mut shadow) = (Vec::new(), Vec::new(), Vec::new());
+    let el = 25f32.to_radians();
+    for k in 0..4 {
+        let az = (15.0 + 90.0 * k as f32).to_radians();
+        let eye = c + dist * Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
+        let fwd = (c - eye).normalize();
+        let right = fwd.cross(Vec3::Y).normalize();
+        let up = right.cross(fwd);
+        for j in 0..64 {
+            for i in 0..64 {
+                let x = (2.0 * (i as f32 + 0.5) / 64.0 - 1.0) * half.tan();
+                let y = (1.0 - 2.0 * (j as f32 + 0.5) / 64.0) * half.tan();
+                let d = (fwd + x * right + y * up).normalize();
+                camera.push((eye, d));
+                if let Some(h) = bvh.closest_hit(eye, d, 0.0, f32::INFINITY) {
+                    let p = eye + d * h.t;
+                    let b = sphere();
+                    bounce.push((p, if b.dot(d) > 0.0 { -b } else { b }));
+                    let s = sphere();
+                    shadow.push((p, if s.y < 0.0 { -s } else { s }));
+                }
+            }
+        }
+    }
+    [("camera", camera), ("bounce", bounce), ("shadow", shadow)]
+}
+
+/// What pre-splitting does to the asset at `path` (see the module doc).
+fn asset_summary(path: &str) {
+    use wavetrace::accel::shape::OwnedShapes;
+    let scene = wavetrace::scene::asset_scene::load(std::path::Path::new(path), None)
+        .expect("the asset loads")
+        .0;
+    let owned = OwnedShapes::of_scene(&scene);
+    let shapes = owned.as_shapes();
+    let sets = asset_rays(shapes.triangles);
+    let eps = 1e-4 * sets[0].1[0].0.abs().max_element().max(1.0);
+    eprintln!(
+        "{path}: {} triangles; rays: {}",
+        shapes.triangles.len(),
+        sets.iter()
+            .map(|(n, r)| format!("{n} {}", r.len()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    eprintln!(
+        "{:>5} {:>5} {:>8} {:>7} {:>7} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>6} {:>7}",
+        "split",
+        "lanes",
+        "build ms",
+        "packs",
+        "nodes",
+        "B/tri",
+        "SAH",
+        "rays",
+        "nodes",
+        "leaves",
+        "packs",
+        "Mrays/s"
+    );
+    let mut hits: Vec<Vec<Option<(u32, u32)>>> = Vec::new();
+    for width in SimdWidth::available() {
+        for share in [0.0, 0.1, 0.25] {
+            let options = BvhOptions { width };
+            let build = wall(3, || {
+                black_box(Bvh::build_shapes_presplit(&shapes, &options, share));
+            });
+            let bvh = Bvh::build_shapes_presplit(&shapes, &options, share);
+            let mine: Vec<_> = sets[0]
+                .1
+                .iter()
+                .map(|&(o, d)| bvh.closest_hit(o, d, 0.0, f32::INFINITY))
+                .map(|h| h.map(|h| (h.triangle, h.t.to_bits())))
+                .collect();
+            if let Some(first) = hits.first() {
+                assert!(first == &mine, "pre-splitting changed a hit");
+            }
+            hits.push(mine);
+            for (k, (name, rays)) in sets.iter().enumerate() {
+                let occlusion = *name == "shadow";
+                let t_min = if k == 0 { 0.0 } else { eps };
+                let mut s = wavetrace::accel::bvh::WalkStats::default();
+                for &(o, d) in rays {
+                    s += bvh.walk_stats(o, d, t_min, f32::INFINITY, occlusion);
+                }
+                let cpu = time(5, || {
+                    for &(o, d) in rays {
+                        if occlusion {
+                            black_box(bvh.occluded(o, d, t_min, f32::INFINITY));
+                        } else {
+                            black_box(bvh.closest_hit(o, d, t_min, f32::INFINITY));
+                        }
+                    }
+                });
+                let n = rays.len() as f64;
+                let lead = if k == 0 {
+                    format!(
+                        "{:>5.2} {:>5} {:>8.1} {:>7} {:>7} {:>6.1} {:>6.1}",
+                        share,
+                        width.lanes(),
+                        build * 1e3,
+                        bvh.pack_count(),
+                        bvh.node_count(),
+                        bvh.bytes() as f64 / shapes.triangles.len() as f64,
+                        bvh.sah_cost()
+                    )
+                } else {
+                    format!("{:>52}", "")
+                };
+                if k == 0 {
+                    eprintln!(
+                        "share {share}: {} references, {} packs in front, packet plan {:?}",
+                        bvh.reference_count(),
+                        bvh.first_pack_count(),
+                        bvh.packet_plan()
+                    );
+                    let mut s = wavetrace::accel::bvh::WalkStats::default();
+                    let mut m = 0;
+                    for &(o, d) in rays {
+                        if bvh.closest_hit(o, d, 0.0, f32::INFINITY).is_some() {
+                            s += bvh.walk_stats(o, d, 0.0, f32::INFINITY, false);
+                            m += 1;
+                        }
+                    }
+                    let m = m as f64;
+                    eprintln!(
+                        "camera rays that hit ({}): nodes {:.2} leaves {:.2} packs {:.2}",
+                        m,
+                        s.nodes as f64 / m,
+                        s.leaves as f64 / m,
+                        s.packs as f64 / m
+                    );
+                }
+                eprintln!(
+                    "{lead} | {name:>6} {:>6.2} {:>6.2} {:>6.2} {:>7.2}",
+                    s.nodes as f64 / n,
+                    s.leaves as f64 / n,
+                    s.packs as f64 / n,
+                    n / cpu / 1e6
+                );
+            }
+        }
+    }
+}
+
 fn benches(c: &mut Criterion) {
+    if let Ok(path) = std::env::var("WAVETRACE_BENCH_ASSET") {
+        asset_summary(&path);
+        return;
+    }
     if std::env::var_os("WAVETRACE_BENCH_NO_SUMMARY").is_none() {
         summary();
         sphere_summary();

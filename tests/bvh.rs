@@ -972,3 +972,227 @@ fn ties_between_copies_in_different_leaves() {
     }
     assert!(on_tri > 1000 && on_sphere > 1000, "{on_tri} {on_sphere}");
 }
+
+// ---------------------------------------------------------------------------
+// Pre-splitting: long thin triangles go to the build as several clipped
+// references; the hits stay brute force's, bit for bit.
+
+/// A cylinder of `n` sliver quads (two triangles each) along a diagonal
+/// axis, each spanning its whole length: boxes far larger than the
+/// triangles, as in a CAD model's shafts and fins.
+fn sliver_cylinder(n: usize) -> Vec<TriangleEdges> {
+    let axis = Vec3::new(1.0, 0.8, 0.6).normalize();
+    let u = axis.cross(Vec3::Z).normalize();
+    let v = axis.cross(u);
+    let (r, len) = (0.05, 2.0);
+    let ring = |k: usize| {
+        let a = std::f32::consts::TAU * k as f32 / n as f32;
+        (u * a.cos() + v * a.sin()) * r
+    };
+    let mut tris = Vec::new();
+    for k in 0..n {
+        let (p, q) = (ring(k) - axis, ring(k + 1) - axis);
+        let (p2, q2) = (p + axis * len, q + axis * len);
+        tris.extend(edges(&[[p, q, p2], [q, q2, p2]]));
+    }
+    tris
+}
+
+/// A fan of `n` long thin triangles from the origin towards random
+/// directions, with a soup of small triangles around them.
+fn sliver_fan(n: usize, seed: u64) -> Vec<TriangleEdges> {
+    let mut r = Rand::new(seed);
+    let mut tris: Vec<TriangleEdges> = (0..n)
+        .map(|_| {
+            let d = r.dir() * r.range(1.0, 2.0);
+            let side = r.dir() * 0.01;
+            TriangleEdges::from_edges(Vec3::ZERO, d, d + side)
+        })
+        .collect();
+    tris.extend(soup(n, seed ^ 7, 0.05));
+    tris
+}
+
+/// An any-hit filter that lets some hits through by primitive and `t`
+/// (a pure function of both, as alpha cut-outs are).
+struct Sieve;
+
+impl wavetrace::accel::hit::HitFilter for Sieve {
+    fn may_pass(&self, prim: u32) -> bool {
+        !prim.is_multiple_of(3)
+    }
+    fn passes(&self, prim: u32, t: f32) -> bool {
+        (prim ^ t.to_bits()) & 1 == 1
+    }
+}
+
+/// Rays through `tris`' box and rays aimed at random points of random
+/// triangles (so many cross split planes near the slivers).
+fn sliver_rays(tris: &[TriangleEdges], n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
+    let (lo, hi) = bounds(tris);
+    let grow = (hi - lo) * 0.2;
+    let mut r = Rand::new(seed);
+    (0..n)
+        .map(|i| {
+            let o = r.point_in(lo - grow, hi + grow);
+            if i % 2 == 0 {
+                return (o, r.dir());
+            }
+            let t = &tris[r.below(tris.len())];
+            let (mut a, mut b) = (r.f(), r.f());
+            if a + b > 1.0 {
+                (a, b) = (1.0 - a, 1.0 - b);
+            }
+            let p = t.v0 + t.e1 * a + t.e2 * b;
+            (o, (p - o).normalize())
+        })
+        .filter(|(_, d)| d.is_finite())
+        .collect()
+}
+
+/// Every query of a pre-split hierarchy over `tris` against brute force:
+/// closest hits (one ray, batch, columns), occlusion at, just before and
+/// just after the closest hit (one ray, batch, columns), and the filtered
+/// queries (one ray and columns), at every width. Returns the references
+/// beyond one per triangle and how many rays hit.
+fn check_presplit(tris: &[TriangleEdges], rays: &[(Vec3, Vec3)]) -> (usize, usize) {
+    use wavetrace::accel::shape::Shapes;
+    use wavetrace::accel::shape::closest_hit_brute_force_filtered;
+    let shapes = Shapes::triangles_and_spheres(tris, &[]);
+    let mut extra = usize::MAX;
+    let mut hits = 0;
+    for width in SimdWidth::available() {
+        let options = BvhOptions { width };
+        let bvh = Bvh::build_shapes_presplit(&shapes, &options, 0.3);
+        let plain = Bvh::build_shapes_presplit(&shapes, &options, 0.0);
+        assert_eq!(plain.reference_count(), tris.len());
+        extra = extra.min(bvh.reference_count() - tris.len());
+        assert!(
+            bvh.reference_count() <= tris.len() + (0.3 * tris.len() as f32) as usize,
+            "{width:?}: {} references for {} triangles",
+            bvh.reference_count(),
+            tris.len()
+        );
+        let n = rays.len();
+        let col = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| rays.iter().map(f).collect::<Vec<f32>>();
+        let o = [col(&|r| r.0.x), col(&|r| r.0.y), col(&|r| r.0.z)];
+        let d = [col(&|r| r.1.x), col(&|r| r.1.y), col(&|r| r.1.z)];
+        let cols = (o.each_ref().map(|c| &c[..]), d.each_ref().map(|c| &c[..]));
+        let (mut t, mut prim) = (vec![0.0; n], vec![0; n]);
+        bvh.closest_hits_columns(cols.0, cols.1, (0.0, f32::INFINITY), &mut t, &mut prim);
+        let (mut ft, mut fprim) = (vec![0.0; n], vec![0; n]);
+        bvh.closest_hits_columns_filtered(
+            cols,
+            (0.0, f32::INFINITY),
+            (&mut ft, &mut fprim),
+            |_| Sieve,
+        );
+        let mut batch = vec![None; n];
+        bvh.closest_hits(rays, 0.0, f32::INFINITY, &mut batch);
+        let mut ends = Vec::new();
+        for (i, &(o, d)) in rays.iter().enumerate() {
+            let want = closest_hit_brute_force(tris, o, d, 0.0, f32::INFINITY);
+            let got = bvh.closest_hit(o, d, 0.0, f32::INFINITY);
+            assert_eq!(key(got), key(want), "{width:?}: ray {i} o={o} d={d}");
+            assert_eq!(key(batch[i]), key(want), "{width:?}: batch ray {i}");
+            let column = (prim[i] != u32::MAX).then_some(Hit {
+                triangle: prim[i],
+                t: t[i],
+            });
+            assert_eq!(key(column), key(want), "{width:?}: column ray {i}");
+            let fwant =
+                closest_hit_brute_force_filtered(&shapes, o, d, (0.0, f32::INFINITY), &Sieve);
+            let fgot = bvh.closest_hit_filtered(o, d, (0.0, f32::INFINITY), &Sieve);
+            assert_eq!(key(fgot), key(fwant), "{width:?}: filtered ray {i}");
+            let fcol = (fprim[i] != u32::MAX).then_some(Hit {
+                triangle: fprim[i],
+                t: ft[i],
+            });
+            assert_eq!(key(fcol), key(fwant), "{width:?}: filtered column ray {i}");
+            hits += usize::from(want.is_some());
+            // Segments at, just before and just after the closest hit
+            // (the filtered one for the filtered query).
+            for (h, f) in [(want, false), (fwant, true)] {
+                let Some(h) = h else { continue };
+                for end in [h.t, h.t.next_up(), h.t.next_down()] {
+                    if f {
+                        let want =
+                            closest_hit_brute_force_filtered(&shapes, o, d, (0.0, end), &Sieve);
+                        let got = bvh.occluded_filtered(o, d, (0.0, end), &Sieve);
+                        assert_eq!(
+                            got,
+                            want.is_some(),
+                            "{width:?}: filtered segment {i} to {end}"
+                        );
+                    } else {
+                        let got = bvh.occluded(o, d, 0.0, end);
+                        assert_eq!(got, h.t < end, "{width:?}: segment {i} to {end}");
+                        ends.push((i, end, h.t < end));
+                    }
+                }
+            }
+        }
+        // The segments in a batch and as columns.
+        let seg: Vec<(Vec3, Vec3)> = ends.iter().map(|e| rays[e.0]).collect();
+        let t_end: Vec<f32> = ends.iter().map(|e| e.1).collect();
+        let mut out = vec![false; seg.len()];
+        bvh.occluded_batch(&seg, 0.0, &t_end, &mut out);
+        let scol = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| seg.iter().map(f).collect::<Vec<f32>>();
+        let so = [scol(&|r| r.0.x), scol(&|r| r.0.y), scol(&|r| r.0.z)];
+        let sd = [scol(&|r| r.1.x), scol(&|r| r.1.y), scol(&|r| r.1.z)];
+        let mut out_cols: Vec<bool> = ends.iter().map(|e| !e.2).collect();
+        bvh.occluded_columns(
+            so.each_ref().map(|c| &c[..]),
+            sd.each_ref().map(|c| &c[..]),
+            0.0,
+            &t_end,
+            &mut out_cols,
+        );
+        for (k, e) in ends.iter().enumerate() {
+            assert_eq!(out[k], e.2, "{width:?}: batch segment {k}");
+            assert_eq!(out_cols[k], e.2, "{width:?}: column segment {k}");
+        }
+    }
+    // Hits were counted at every width.
+    (extra, hits / SimdWidth::available().len())
+}
+
+#[test]
+fn presplit_slivers_equal_brute_force() {
+    for (name, tris, seed) in [
+        ("cylinder", sliver_cylinder(300), 1),
+        ("fan", sliver_fan(400, 2), 2),
+    ] {
+        let rays = sliver_rays(&tris, 3000, seed);
+        let (extra, hits) = check_presplit(&tris, &rays);
+        eprintln!(
+            "{name}: {} triangles, {extra} extra references, {hits} of {} rays hit",
+            tris.len(),
+            rays.len()
+        );
+        // The split happened (references beyond one per triangle) and
+        // the rays meet the slivers.
+        assert!(extra > tris.len() / 10, "{name}: {extra} extra references");
+        assert!(hits > rays.len() / 4, "{name}: {hits} hits");
+    }
+}
+
+#[test]
+fn presplit_build_is_the_same_on_any_thread_count() {
+    use wavetrace::accel::shape::Shapes;
+    let tris = sliver_fan(2000, 9);
+    let shapes = Shapes::triangles_and_spheres(&tris, &[]);
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| Bvh::build_shapes_presplit(&shapes, &BvhOptions::default(), 0.3))
+    };
+    let (a, b) = (build(1), build(3));
+    assert!(a.reference_count() > tris.len());
+    assert_eq!(a.reference_count(), b.reference_count());
+    assert_eq!(a.node_count(), b.node_count());
+    assert_eq!(a.pack_count(), b.pack_count());
+    assert_eq!(a.sah_cost().to_bits(), b.sah_cost().to_bits());
+}

@@ -58,6 +58,10 @@ pub struct BuildParams {
     /// primitive, so a walk tests its box (for a tree behind triangles
     /// tested first, whose hit culls that box).
     pub root_node: bool,
+    /// Pre-splitting (`presplit`): at most this many extra references
+    /// per primitive in all (`0.0`: none, the default; see
+    /// [`Bvh::build_shapes_presplit`](super::Bvh::build_shapes_presplit)).
+    pub presplit: f32,
 }
 
 impl BuildParams {
@@ -69,6 +73,7 @@ impl BuildParams {
             cost_node: 1.0,
             cost_pack: 1.5,
             root_node: false,
+            presplit: 0.0,
         }
     }
 
@@ -134,6 +139,9 @@ pub(crate) struct Prim {
     pub b: Aabb,
     pub index: u32,
     pub kind: u8,
+    /// A piece of a pre-split primitive ([`presplit`](super::presplit)):
+    /// others may name the same primitive.
+    pub piece: bool,
 }
 
 impl Prim {
@@ -153,6 +161,7 @@ impl From<&BuildPrim> for Prim {
             },
             index: p.index,
             kind: p.kind as u8,
+            piece: false,
         }
     }
 }
@@ -561,7 +570,12 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
         whole.b.extent()
     };
     let pad = Vec3A::splat(extent * PAD);
-    let tree = (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params));
+    let mut tree = (!prims.is_empty()).then(|| build_node(&mut prims, 0, whole, 0, params));
+    if let Some(t) = &mut tree
+        && params.presplit > 0.0
+    {
+        dedup_leaves(t, &mut prims);
+    }
     let mut topo = Topology {
         nodes: Vec::new(),
         root: Child::EMPTY,
@@ -574,6 +588,36 @@ pub(crate) fn build(prims: Vec<Prim>, params: &BuildParams) -> Topology {
     }
     topo.prims = prims;
     topo
+}
+
+/// Keep one reference per primitive in each leaf: pieces of one
+/// pre-split primitive that the build put in the same leaf would fill
+/// lanes with the same test. The leaf's other references keep their
+/// order; its run shortens (the slots after it are left unused).
+fn dedup_leaves(t: &mut BuildNode, prims: &mut [Prim]) {
+    match t {
+        BuildNode::Leaf { start, len } => {
+            let run = &mut prims[*start..*start + *len];
+            if run.iter().filter(|p| p.piece).count() < 2 {
+                return;
+            }
+            let mut kept = 0;
+            for i in 0..run.len() {
+                let p = run[i];
+                let seen = || run[..kept].iter().any(|q| q.piece && q.index == p.index);
+                if !p.piece || !seen() {
+                    run[kept] = p;
+                    kept += 1;
+                }
+            }
+            *len = kept;
+        }
+        BuildNode::Inner(children) => {
+            for (_, c) in children {
+                dedup_leaves(c, prims);
+            }
+        }
+    }
 }
 
 /// Append `t`'s nodes (depth first) and leaves to `topo`; returns its child

@@ -32,6 +32,10 @@
 //! lists, fills it through [`Shape`] (`bounds`, `pack`), and the walk
 //! hands a leaf to its query by the leaf's kind number
 //! ([`Kinds::by_kind`]), so every query handles every kind with one body.
+//! Optionally ([`Bvh::build_shapes_presplit`], not the default) long thin
+//! triangles first go in as several references, each the box of the
+//! triangle's part in a region (`presplit`, by a counted budget); a leaf
+//! keeps one reference per primitive.
 //! (Triangles have two extras of their own, for small scenes: occluders
 //! tested first, and ray packets: `small`, `packet`.)
 //!
@@ -61,7 +65,15 @@
 //! (`2^-15` of the scene's largest coordinate) so that rounding in the box
 //! test or in Möller–Trumbore cannot cull a triangle that the kernel would
 //! report, and a sphere's box (center ± radius) is likewise padded against
-//! the sphere kernel's rounding. The result is the same primitive and the
+//! the sphere kernel's rounding. A pre-split triangle's references have
+//! boxes that each contain the triangle's part in their region, computed
+//! conservatively and within the triangle's own box, and together cover
+//! the whole triangle: every point the kernel could report lies in one
+//! of them, padded as a whole triangle's box would be; a ray that meets
+//! the triangle through two references gets the same `(t, index)` twice,
+//! which leaves the minimum as it is, and an any-hit filter is asked the
+//! same question twice (it is a function of the primitive and `t`), so
+//! it answers the same. The result is the same primitive and the
 //! same `t` bits as
 //! [`closest_hit_brute_force`](crate::accel::triangle::closest_hit_brute_force)
 //! (triangles only) or
@@ -79,12 +91,14 @@
 pub mod build;
 mod node;
 mod packet;
+mod presplit;
 mod small;
 mod two_level;
 mod walk;
 
 pub use build::{BuildParams, BuildPrim, SAH_DEPTH_LIMIT};
 pub use node::MAX_KINDS;
+pub use presplit::MAX_PIECES;
 pub use two_level::{Placed, Placements, TwoLevel};
 pub use walk::{BATCH, WalkStats};
 
@@ -337,6 +351,9 @@ pub struct Bvh {
     packets: packet::Plan,
     /// Each kind's number of primitives.
     counts: [usize; Shapes::COUNT],
+    /// References to primitives in the tree's leaves (pre-split pieces
+    /// counted once per leaf they are in).
+    references: usize,
     build_seconds: f64,
     /// Instancing: where set, every query goes to this two-level
     /// hierarchy instead (the fields above are empty).
@@ -385,6 +402,23 @@ impl Bvh {
     ///
     /// With 2^29 or more primitives in all.
     pub fn build_shapes(shapes: &Shapes<'_>, options: &BvhOptions) -> Bvh {
+        Self::build_shapes_presplit(shapes, options, 0.0)
+    }
+
+    /// [`Bvh::build_shapes`] with pre-splitting (`presplit`): long thin
+    /// triangles go to the build as several references, at most `share`
+    /// extra references per primitive in all (`0.0`: none, as
+    /// [`Bvh::build_shapes`] builds), in scenes of more than 256
+    /// primitives (smaller ones are never split). The same hits whatever
+    /// `share`. Not the default: on `2CylinderEngine.glb`, the CAD model
+    /// it was made for, 25 % more references cut the closest-hit walk's
+    /// instructions by 4 % but cost 1.6 times the build (see
+    /// `docs/performance.md`).
+    ///
+    /// # Panics
+    ///
+    /// With 2^29 or more primitives in all.
+    pub fn build_shapes_presplit(shapes: &Shapes<'_>, options: &BvhOptions, share: f32) -> Bvh {
         let started = Instant::now();
         let tris = shapes.triangles;
         let all = shapes.len();
@@ -398,6 +432,7 @@ impl Bvh {
             let first = small::large_triangles(tris, width.lanes());
             let params = BuildParams {
                 root_node: !first.is_empty(),
+                presplit: share,
                 ..BuildParams::for_lanes(width.lanes())
             };
             let mut bvh = Self::assemble(shapes, &first, width, &params);
@@ -460,6 +495,7 @@ impl Bvh {
             in_order: false,
             packets: packet::Plan::default(),
             counts,
+            references: 0,
             build_seconds: 0.0,
             two_level: None,
         }
@@ -495,6 +531,7 @@ impl Bvh {
                         b: Aabb { lo, hi },
                         index: j as u32,
                         kind: S::KIND as u8,
+                        piece: false,
                     })
                 });
                 let prims: Vec<Prim> = prims.collect();
@@ -524,7 +561,14 @@ impl Bvh {
             prims: Vec::new(),
         };
         shapes.any(&mut split);
-        let prims = std::mem::take(&mut split.prims);
+        let mut prims = std::mem::take(&mut split.prims);
+        if params.presplit > 0.0 {
+            let tris = shapes.triangles;
+            prims = presplit::presplit(prims, params.presplit, |p| {
+                (p.kind as u32 == TriangleEdges::KIND)
+                    .then(|| triangle_vertices(&tris[p.index as usize]))
+            });
+        }
         let unbounded = Unbounded::new(&mut UnboundedOf {
             shapes,
             split: &split,
@@ -546,6 +590,7 @@ impl Bvh {
             SimdWidth::W16 => unreachable!("16 lanes are x86-64 only"),
         };
         bvh.in_order = !topo.root.is_node() && !unbounded;
+        bvh.references = topo.leaves.iter().map(|l| l.len).sum();
         bvh.nodes = topo.nodes;
         bvh.interleave = bvh.bytes() >= INTERLEAVE_BYTES;
         bvh
@@ -1091,6 +1136,50 @@ impl Bvh {
         }
     }
 
+    /// The tree's cost by the surface area heuristic, as the build counts
+    /// it: each inner node 1 and each pack 1.5, times the chance that a
+    /// ray through the root's box enters the box in front of it (the ratio
+    /// of their areas); packs in front of the tree count in full. 0 for a
+    /// two-level hierarchy.
+    pub fn sah_cost(&self) -> f64 {
+        if self.two_level.is_some() {
+            return 0.0;
+        }
+        let params = BuildParams::for_lanes(self.width.lanes());
+        let area = |(lo, hi): (Vec3A, Vec3A)| Aabb { lo, hi }.half_area() as f64;
+        if !self.root.is_node() {
+            return self.pack_count() as f64 * params.cost_pack as f64;
+        }
+        let first = self.first_pack_count() as f64 * params.cost_pack as f64;
+        let node_box = |n: usize| {
+            let mut b = Aabb::EMPTY;
+            for i in 0..8 {
+                if self.nodes[n].child[i] != Child::EMPTY {
+                    let (lo, hi) = self.nodes[n].child_box(i);
+                    b.grow(&Aabb { lo, hi });
+                }
+            }
+            (b.lo, b.hi)
+        };
+        let mut cost = 0.0;
+        let mut stack = vec![(self.root.0 as usize, area(node_box(self.root.0 as usize)))];
+        while let Some((n, a)) = stack.pop() {
+            cost += params.cost_node as f64 * a;
+            for (i, &c) in self.nodes[n].child.iter().enumerate() {
+                if c == Child::EMPTY {
+                    continue;
+                }
+                let ca = area(self.nodes[n].child_box(i));
+                if c.is_node() {
+                    stack.push((c.0 as usize, ca));
+                } else {
+                    cost += params.cost_pack as f64 * c.packs().1 as f64 * ca;
+                }
+            }
+        }
+        first + cost / area(node_box(self.root.0 as usize))
+    }
+
     /// The SIMD width of the packs and kernels in use.
     pub fn simd_width(&self) -> SimdWidth {
         self.width
@@ -1110,6 +1199,13 @@ impl Bvh {
     /// Number of primitives, of every kind.
     pub fn prim_count(&self) -> usize {
         self.counts.iter().sum()
+    }
+
+    /// References to primitives in the tree's leaves: each primitive with
+    /// a box once, and a pre-split one once for each leaf its pieces are
+    /// in (0 for a two-level hierarchy).
+    pub fn reference_count(&self) -> usize {
+        self.references
     }
 
     /// Number of inner (8-wide) nodes (with instancing: of every tree,
@@ -1186,12 +1282,19 @@ impl Bvh {
 /// A triangle's box (finite for a finite triangle).
 #[inline]
 fn triangle_box(t: &TriangleEdges) -> Aabb {
-    let v0 = Vec3A::from(t.v0);
-    let (v1, v2) = (v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2));
+    let [v0, v1, v2] = triangle_vertices(t);
     Aabb {
         lo: v0.min(v1).min(v2),
         hi: v0.max(v1).max(v2),
     }
+}
+
+/// A triangle's vertices as its box is computed from them (`v0`, and
+/// `v0 + e1`, `v0 + e2` rounded).
+#[inline]
+fn triangle_vertices(t: &TriangleEdges) -> [Vec3A; 3] {
+    let v0 = Vec3A::from(t.v0);
+    [v0, v0 + Vec3A::from(t.e1), v0 + Vec3A::from(t.e2)]
 }
 
 /// Ray `i` of rays given as columns: its origin and direction.

@@ -110,6 +110,12 @@ impl Node8 {
 
     /// Which children the ray enters before `t_max` (a bit mask), and
     /// where it enters them.
+    /// Child `i`'s box (padded), as `(lo, hi)`.
+    pub fn child_box(&self, i: usize) -> (Vec3A, Vec3A) {
+        let p = self.planes.map(|v| v.to_array()[i]);
+        (Vec3A::new(p[0], p[1], p[2]), Vec3A::new(p[3], p[4], p[5]))
+    }
+
     #[inline(always)]
     pub fn intersect(&self, r: &NodeRay, t_max: f32) -> (u32, f32x8) {
         // The box test has no scalar twin to agree with, so it may use fused

@@ -18,11 +18,20 @@
 //!
 //! Bigger scenes (more than [`MAX_PRIMS`] primitives) are too big to be
 //! built several ways; there the largest triangles go in front of the tree
-//! by a rule ([`large_triangles`]): those whose box is at least
-//! [`LARGE`] of the scene's (by surface area), at most
-//! [`MAX_FIRST_PACKS`] packs of them. In `sphere-1m` those are the box's
-//! 32 triangles, and a ray that misses the sphere then tests them and one
-//! box (measured: the intersect stage 91 → 64 ns a ray at 16 lanes).
+//! by a rule ([`large_triangles`]): those whose area, projected on the
+//! three axis planes and doubled (what a box's surface counts: a right
+//! triangle in an axis plane has its box's), is at least [`LARGE`] of the
+//! scene box's surface area, at most [`MAX_FIRST_PACKS`] packs of them.
+//! In `sphere-1m` those are the box's 32 triangles, and a ray that misses
+//! the sphere then tests them and one box (measured: the intersect stage
+//! 91 → 64 ns a ray at 16 lanes). A long thin triangle across the scene
+//! (a CAD model's shafts and fins) has a large box but few rays hit it:
+//! by its box it went in front, where every ray tested it; by its
+//! area it stays in the tree, where only the rays near it meet it. And
+//! the large triangles go in front only when they are a room, that most
+//! rays through the scene's box meet ([`ROOM`]): not in a CAD model such
+//! as `2CylinderEngine.glb` (whose 32 largest went in front, four packs
+//! that every ray tested while few hit them).
 //!
 //! The wavefront's batches of rays test small scenes of triangles in ray
 //! packets instead (`packet`), by a plan chosen here the same way: the
@@ -57,8 +66,19 @@ use rayon::prelude::*;
 pub const MAX_PRIMS: usize = 256;
 
 /// A big scene's triangle is large, and goes in front of the tree, when
-/// its box has at least this share of the scene box's surface area.
+/// twice its projected area ([`doubled_projected_area`]) is at least this
+/// share of the scene box's surface area.
 pub const LARGE: f32 = 0.01;
+
+/// A big scene's large triangles go in front of its tree only when their
+/// doubled projected areas ([`doubled_projected_area`]) sum to at least
+/// this many times the scene box's half area: by Cauchy's formula a
+/// random line through the box then meets them about once or more on
+/// average, as rays in a room meet its walls (the Cornell box's 32
+/// triangles: 4.48 times). The 32 largest of `2CylinderEngine.glb`,
+/// a CAD model that no triangle encloses, sum to 0.62 times (the 64
+/// largest 0.96): every ray tested them in front, and few hit them.
+pub const ROOM: f32 = 2.0;
 
 /// Most packs of large triangles in front of a big scene's tree.
 pub const MAX_FIRST_PACKS: usize = 4;
@@ -174,7 +194,8 @@ fn candidates<'a>(shapes: &'a Shapes<'_>, width: SimdWidth) -> impl Iterator<Ite
 
 /// The large triangles of a big scene (see [`LARGE`]), at most
 /// [`MAX_FIRST_PACKS`] packs of `lanes` of them (the largest), by
-/// increasing index; none when no triangle is that large.
+/// increasing index; none when no triangle is that large, or when they
+/// are not a room (see [`ROOM`]).
 pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> {
     let scene = union(tris.par_iter().filter(|t| t.is_finite()).map(triangle_box));
     let limit = LARGE * scene.half_area();
@@ -182,14 +203,27 @@ pub(super) fn large_triangles(tris: &[TriangleEdges], lanes: usize) -> Vec<u32> 
         .par_iter()
         .enumerate()
         .filter(|(_, t)| t.is_finite())
-        .map(|(i, t)| (triangle_box(t).half_area(), i as u32))
+        .map(|(i, t)| (doubled_projected_area(t), i as u32))
         .filter(|&(a, _)| a >= limit && a > 0.0)
         .collect();
     large.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     large.truncate(MAX_FIRST_PACKS * lanes);
+    let sum: f64 = large.iter().map(|&(a, _)| a as f64).sum();
+    if sum < ROOM as f64 * scene.half_area() as f64 {
+        return Vec::new();
+    }
     let mut first: Vec<u32> = large.into_iter().map(|(_, i)| i).collect();
     first.sort_unstable();
     first
+}
+
+/// The sum of a triangle's areas projected on the three axis planes,
+/// doubled: its box's half area where it is a right triangle in an axis
+/// plane with its legs along the axes, less for any other (a sliver
+/// across the axes: far less).
+fn doubled_projected_area(t: &TriangleEdges) -> f32 {
+    let c = t.e1.cross(t.e2);
+    c.x.abs() + c.y.abs() + c.z.abs()
 }
 
 /// The ray packets in front of a big scene's tree: a packet plan over its
