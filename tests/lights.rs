@@ -696,3 +696,189 @@ fn bad_khr_lights_punctual_spots_are_refused_with_their_json_path() {
         assert!(e.contains("bad.glb") && e.contains(at), "{light}: {e}");
     }
 }
+
+/// A ground square under a sky (a gradient with a bright sun, turned by
+/// 30°) with `extra` (lamps, punctual lights), seen from above.
+fn sky_scene(extra: &str) -> Scene {
+    let mut scene = ground_scene(
+        [0.0, 5.0, 0.0],
+        60.0,
+        (8, 8),
+        &format!("[environment]\ncolor = [1.0, 1.0, 1.0]\n{extra}"),
+    );
+    let env = scene.environment.as_mut().unwrap();
+    let (w, h) = (24u32, 12u32);
+    env.texels = std::sync::Arc::new(
+        (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| match (i, j) {
+                (17, 3) => [300.0, 280.0, 200.0],
+                (_, j) if j >= h / 2 => [0.05, 0.04, 0.03],
+                (i, j) => [0.3 + 0.02 * i as f32, 0.5, 0.9 - 0.05 * j as f32],
+            })
+            .collect(),
+    );
+    (env.width, env.height, env.rotation_deg) = (w, h, 30.0);
+    scene
+}
+
+/// `n` small emissive squares in a row above the ground, facing down, and, with
+/// `sphere`, an emissive sphere (another kind than triangles); more than
+/// 16 emitters are picked by a light tree.
+fn lamps(n: usize, sphere: bool) -> String {
+    let mut s = String::from(
+        "[materials.lamp]\nreflectance = [0.0, 0.0, 0.0]\nemission = [400.0, 300.0, 200.0]\n",
+    );
+    if sphere {
+        s += "[[sphere]]\ncenter = [1.5, 1.0, -1.0]\nradius = 0.3\nmaterial = \"lamp\"\n";
+    }
+    for k in 0..n {
+        let x = -2.0 + 0.25 * k as f32;
+        s += &format!(
+            "[[quad]]\nmaterial = \"lamp\"\nvertices = [[{x:?}, 2.0, -0.2], [{:?}, 2.0, -0.2], [{:?}, 2.0, 0.0], [{x:?}, 2.0, 0.0]]\n",
+            x + 0.2,
+            x + 0.2
+        );
+    }
+    s
+}
+
+const PUNCTUAL: &str = r#"
+[[light]]
+type = "point"
+position = [1.0, 1.5, 1.0]
+intensity = 0.8
+[[light]]
+type = "spot"
+position = [-1.0, 2.0, 0.5]
+direction = [0.4, -1.0, -0.2]
+intensity = 2.0
+inner_angle = 10.0
+outer_angle = 25.0
+[[light]]
+type = "sun"
+direction = [-0.5, -1.0, -0.4]
+irradiance = 2.0
+angle = 8.0
+[[light]]
+type = "sun"
+direction = [0.6, -1.0, 0.2]
+irradiance = 0.5
+angle = 0.0
+"#;
+
+#[test]
+fn eight_and_sixteen_lanes_sample_the_lights_one_lane_does() {
+    // The wavefront light stage's `sample_8` and `sample_16` against the
+    // reference tracer's `sample`, lane by lane, bit for bit, in scenes
+    // with an environment or punctual lights: the environment alone (the
+    // 2CylinderEngine case), with one lamp (textured.glb's), with lamps of
+    // two kinds and every punctual light, with a light tree, and punctual
+    // lights without an environment.
+    use wavetrace::integrator::lights::{LightPoint, Lights};
+    use wavetrace::math::V3;
+    use wide::f32x8;
+    let no_sky = ground_scene([0.0, 5.0, 0.0], 60.0, (8, 8), &(lamps(2, true) + PUNCTUAL));
+    let scenes = [
+        ("sky", sky_scene("")),
+        ("sky + lamp", sky_scene(&lamps(1, false))),
+        (
+            "sky + lamps + punctual",
+            sky_scene(&(lamps(3, true) + PUNCTUAL)),
+        ),
+        (
+            "sky + tree + punctual",
+            sky_scene(&(lamps(20, false) + PUNCTUAL)),
+        ),
+        ("punctual + lamps", no_sky),
+    ];
+    let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    let fields = |p: &LightPoint<f32>| {
+        let v = |v: V3<f32>| [v.x, v.y, v.z];
+        let [a, b, c] = [v(p.point), v(p.normal), v(p.emission)];
+        let rest = [p.pdf_area, p.pdf_solid_angle, p.scale, p.prim, p.delta];
+        [a.as_slice(), &b, &c, &rest].concat()
+    };
+    let lane = |p: &LightPoint<f32x8>, l: usize| {
+        let a = |x: f32x8| x.to_array()[l];
+        let v = |v: V3<f32x8>| V3::new(a(v.x), a(v.y), a(v.z));
+        LightPoint {
+            point: v(p.point),
+            normal: v(p.normal),
+            emission: v(p.emission),
+            pdf_area: a(p.pdf_area),
+            pdf_solid_angle: a(p.pdf_solid_angle),
+            scale: a(p.scale),
+            prim: a(p.prim),
+            delta: a(p.delta),
+        }
+    };
+    for (name, scene) in &scenes {
+        let lights = Lights::new(scene);
+        let mut rng = wavetrace::integrator::sampler::PathRng::new(5, 6, 7);
+        let fixed = [0.0f32, 1.0 - f32::EPSILON / 2.0, 0.5, 0.25, 0.999];
+        let (mut hits, mut kinds) = (0, [0usize; 3]);
+        for round in 0..400 {
+            let u: [[f32; 2]; 16] = std::array::from_fn(|l| {
+                let a = if (round + l) % 7 == 0 {
+                    fixed[(round + l) % 5]
+                } else {
+                    rng.next_f32()
+                };
+                [a, rng.next_f32()]
+            });
+            let o: [V3<f32>; 16] = std::array::from_fn(|_| {
+                V3::new(
+                    rng.next_f32() * 4.0 - 2.0,
+                    rng.next_f32() * 1.5,
+                    rng.next_f32() * 4.0 - 2.0,
+                )
+            });
+            let group = |g: usize| {
+                let c =
+                    |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn(|l| f(8 * g + l)));
+                (
+                    V3::new(c(&|l| o[l].x), c(&|l| o[l].y), c(&|l| o[l].z)),
+                    [c(&|l| u[l][0]), c(&|l| u[l][1])],
+                )
+            };
+            let ((oa, ua), (ob, ub)) = (group(0), group(1));
+            let live = [8, 1 + round % 8];
+            let eight = lights.sample_8(oa, ua, live[0]);
+            let sixteen = lights.sample_16([oa, ob], [ua, ub], live);
+            for l in 0..16 {
+                let (g, k) = (l / 8, l % 8);
+                if k >= live[g] {
+                    continue;
+                }
+                let want = fields(&lights.sample(o[l], u[l]).unwrap());
+                let mut got = vec![fields(&lane(&sixteen[g], k))];
+                if g == 0 {
+                    got.push(fields(&lane(&eight, k)));
+                }
+                for got in got {
+                    assert!(
+                        got.iter().zip(&want).all(|(&a, &b)| same(a, b)),
+                        "{name}: lane {l}, u {:?}, o {:?}:\n{got:?}\n{want:?}",
+                        u[l],
+                        o[l]
+                    );
+                }
+                hits += 1;
+                // Which light it went to: a delta light, an emitter, the
+                // rest (a sun's cone, the environment).
+                let p = lights.sample(o[l], u[l]).unwrap();
+                let emitter = p.prim.to_bits() != f32::MAX.to_bits();
+                kinds[if p.delta > 0.0 {
+                    0
+                } else if emitter {
+                    1
+                } else {
+                    2
+                }] += 1;
+            }
+        }
+        assert!(hits > 4000, "{name}: {hits}");
+        eprintln!("{name}: {hits} lanes, (delta, emitter, other) {kinds:?}");
+    }
+}

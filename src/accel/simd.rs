@@ -149,6 +149,10 @@ pub trait Lanes: Real + Debug + Send + Sync + 'static {
     fn gather_texels(texels: &[u32], at: Self::Index) -> Self::Index;
     /// `table[at & 255]` for each lane (a gather).
     fn gather_table(table: &[f32; 256], at: Self::Index) -> Self;
+    /// `table[at]` for each lane (a gather), `at` read as `u32` and
+    /// clamped to `table.len() − 1`, so that no lane reads outside
+    /// `table` (which must not be empty).
+    fn gather_f32(table: &[f32], at: Self::Index) -> Self;
 }
 
 impl TexelIndex for i32x8 {
@@ -327,6 +331,28 @@ impl Lanes for f32x8 {
             f32x8::from(at.map(|k| table[k as usize]))
         }
     }
+    #[inline(always)]
+    fn gather_f32(table: &[f32], at: i32x8) -> Self {
+        let last = u32x8::splat(table.len() as u32 - 1);
+        let at = bytemuck::cast::<i32x8, u32x8>(at).min(last);
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        {
+            use std::arch::x86_64::{__m256i, _mm256_i32gather_ps};
+            // SAFETY: AVX2 is enabled at compile time (the `cfg` above);
+            // every lane of `at` is at most `table.len() − 1` (unsigned,
+            // so never negative either), so each lane reads an `f32`
+            // inside `table`.
+            unsafe {
+                let at = bytemuck::cast::<u32x8, __m256i>(at);
+                bytemuck::cast(_mm256_i32gather_ps::<4>(table.as_ptr(), at))
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        {
+            let at: [u32; 8] = bytemuck::cast(at);
+            f32x8::from(at.map(|k| table[k as usize]))
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -373,7 +399,7 @@ mod x16 {
     // arrays of exactly 16 lanes, `_mm512_storeu_si512` in `compress`,
     // whose pointer comes from a slice of exactly 16 lanes, and the gathers
     // of `gather_texels` and `gather_table`, whose lanes are clamped or
-    // masked into their slices first.
+    // masked into their slices first (and `gather_f32`'s, clamped).
 
     impl Add for I32x16 {
         type Output = Self;
@@ -671,6 +697,16 @@ mod x16 {
             // into `0..256` first, so each reads an `f32` inside `table`.
             F32x16(unsafe {
                 let at = _mm512_and_si512(at.0, _mm512_set1_epi32(255));
+                _mm512_i32gather_ps::<4>(at, table.as_ptr())
+            })
+        }
+        #[inline(always)]
+        fn gather_f32(table: &[f32], at: I32x16) -> Self {
+            // SAFETY: see the module's documentation; every lane is
+            // clamped (unsigned) to `table.len() − 1` first, so each reads
+            // an `f32` inside `table`.
+            F32x16(unsafe {
+                let at = _mm512_min_epu32(at.0, _mm512_set1_epi32(table.len() as i32 - 1));
                 _mm512_i32gather_ps::<4>(at, table.as_ptr())
             })
         }

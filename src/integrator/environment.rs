@@ -22,11 +22,17 @@
 //! library's, not this program's).
 //! The reference tracer looks up one direction at a time, the wavefront
 //! engine eight ([`EnvLight::radiance_and_pdf_lanes`]); each lane does the
-//! scalar lookup's operations, so the two compute the same bits.
+//! scalar lookup's operations, so the two compute the same bits. Likewise
+//! the reference tracer draws one direction at a time
+//! ([`EnvLight::sample`]), the wavefront engine eight
+//! ([`EnvLight::sample_lanes`]): the searches of the running sums are
+//! binary searches of a fixed number of steps in lanes ([`pick_lanes`]),
+//! the texel, density and running-sum reads gathers.
 
 use crate::accel::simd::Lanes;
-use crate::math::{Real, V3};
+use crate::math::{Real, V3, sin_cos_2pi};
 use crate::scene::environment::Environment;
+use crate::scene::texture::TexelIndex;
 use std::f32::consts::{FRAC_PI_2, PI};
 
 /// The sampling grid has at least this many rows (a small image's texels
@@ -57,18 +63,35 @@ pub struct EnvLight {
     /// The mean over the sphere of the radiance's RGB mean, by solid
     /// angle: what its power (against other emitters) is made of.
     pub mean_radiance: f64,
+    /// Whether the lane functions read by gathers: every index of the
+    /// texels' floats and of the cells fits an `i32` and the sizes are
+    /// exact in `f32` (else they go lane by lane through the scalar
+    /// functions).
+    gathers: bool,
 }
 
-/// A direction drawn from the environment.
+/// A direction drawn from the environment: one (`R = f32`), or one per
+/// lane ([`EnvLight::sample_lanes`]).
 #[derive(Clone, Copy, Debug)]
-pub struct EnvSample {
+pub struct EnvSample<R = f32> {
     /// Unit direction, world space.
-    pub dir: V3<f32>,
+    pub dir: V3<R>,
     /// The radiance arriving from it.
-    pub radiance: V3<f32>,
+    pub radiance: V3<R>,
     /// Its density per unit solid angle (positive).
-    pub pdf: f32,
+    pub pdf: R,
 }
+
+/// The lanes' numbers, `0, 1, 2, …`: which lanes are in use.
+const LANE_NUMBERS: [f32; 16] = [
+    0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0, 14.0, 15.0,
+];
+
+/// The largest `f32` below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// Sizes up to this are exact in `f32` (2²⁴).
+const EXACT: usize = 1 << 24;
 
 /// `atan(a) / a = P(a²)` on `a ∈ [0, 1]`, lowest power first: fitted to
 /// the relative error (Lawson's iteration; 1.5·10⁻⁸ in exact arithmetic).
@@ -129,7 +152,50 @@ fn pick(cdf: &[f32], u: f32) -> (usize, f32) {
     let k = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
     let lo = if k == 0 { 0.0 } else { cdf[k - 1] };
     let t = (u - lo) / (cdf[k] - lo);
-    (k, t.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    (k, t.clamp(0.0, ONE_MINUS_EPSILON))
+}
+
+/// The environment's search of running sums (`pick`: the index of the
+/// first sum above `u`, and `u` stretched back to `[0, 1)` over its
+/// share) lane by lane, each lane over the running sums
+/// `table[base .. base + n]` (its own `base`; `n ≥ 1`, the sums never
+/// decreasing, NaN-free, `n` at most 2²⁴): the index `k` (as a float),
+/// `base + k`, and `u` stretched, the same bits as `pick` in every lane.
+///
+/// `k` is `partition_point`'s index capped at `n − 1`, which for sorted
+/// sums is the number of the first `n − 1` sums that are `≤ u`: found by
+/// binary lifting, a fixed `⌊log₂(n − 1)⌋ + 1` steps of one gather each
+/// (step `s`, a power of two from the largest below `n` down to 1: add
+/// `s` to `k` where the sum at `k + s − 1` is `≤ u` and `k + s ≤ n − 1`).
+/// The sum before `k` is the last one found `≤ u` (0 where none was), so
+/// the stretch needs one more gather, of the sum at `k`.
+#[inline(always)]
+pub fn pick_lanes<L: Lanes>(table: &[f32], base: L::Index, n: usize, u: L) -> (L, L::Index, L) {
+    debug_assert!((1..=EXACT).contains(&n));
+    let last = L::splat((n - 1) as f32);
+    let (mut k, mut lo) = (L::splat(0.0), L::splat(0.0));
+    if n > 1 {
+        let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+        while step > 0 {
+            let next = k + L::splat(step as f32);
+            let at = base + (next.min(last) - L::splat(1.0)).to_index();
+            let sum = L::gather_f32(table, at);
+            let take = next.le(last) & sum.le(u);
+            k = L::select(take, next, k);
+            lo = L::select(take, sum, lo);
+            step >>= 1;
+        }
+    }
+    let at = base + k.to_index();
+    let t = (u - lo) / (L::gather_f32(table, at) - lo);
+    let t = t.max(L::splat(0.0)).min(L::splat(ONE_MINUS_EPSILON));
+    (k, at, t)
+}
+
+/// Whether `sums` never decrease and hold no NaN (what [`pick_lanes`]
+/// needs to find `partition_point`'s index).
+pub fn sorted(sums: &[f32]) -> bool {
+    sums.iter().all(|s| !s.is_nan()) && sums.windows(2).all(|w| w[0] <= w[1])
 }
 
 impl EnvLight {
@@ -232,6 +298,13 @@ impl EnvLight {
         } else {
             (vec![0.0; cols * rows], Vec::new(), Vec::new())
         };
+        // (The running sums never decrease: sums of weights that are not
+        // negative, over a positive total, rounded.)
+        debug_assert!(sorted(&marginal) && conditional.chunks(cols).all(sorted));
+        let fits = |n: usize| n <= i32::MAX as usize;
+        let gathers = fits(texels.len() * 3)
+            && fits(cols * rows)
+            && [width, height, cols, rows].iter().all(|&n| n <= EXACT);
         Self {
             width,
             height,
@@ -245,6 +318,7 @@ impl EnvLight {
             marginal,
             conditional,
             mean_radiance: mean,
+            gathers,
         }
     }
 
@@ -292,13 +366,12 @@ impl EnvLight {
         (self.radiance_at(uv), self.pdf_at(uv, d))
     }
 
-    /// The image looked up bilinearly at `(u, v)`.
+    /// The four texels (their indices, row-major) that the bilinear
+    /// lookup reads for the texel-space corner `(x0, y0)` (whole numbers,
+    /// or NaN): `a`, `b` on the upper row, `c`, `e` below; `u` wrapped,
+    /// `v` clamped.
     #[inline]
-    fn radiance_at(&self, [u, v]: [f32; 2]) -> V3<f32> {
-        let x = u * self.width as f32 - 0.5;
-        let y = v * self.height as f32 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
+    fn corners(&self, x0: f32, y0: f32) -> [usize; 4] {
         let w = self.width as i64;
         let h = self.height as i64 - 1;
         let (i0, j0) = (x0 as i64, y0 as i64);
@@ -313,8 +386,75 @@ impl EnvLight {
         };
         let i = [wrap(i0) as usize, wrap(i0 + 1) as usize];
         let j = [j0.clamp(0, h) as usize, (j0 + 1).clamp(0, h) as usize];
-        let t = |i: usize, j: usize| self.texels[j * self.width + i];
-        let (a, b, c, e) = (t(i[0], j[0]), t(i[1], j[0]), t(i[0], j[1]), t(i[1], j[1]));
+        let at = |i: usize, j: usize| j * self.width + i;
+        [
+            at(i[0], j[0]),
+            at(i[1], j[0]),
+            at(i[0], j[1]),
+            at(i[1], j[1]),
+        ]
+    }
+
+    /// [`corners`](Self::corners) lane by lane, each index times 3 (the
+    /// first of the texel's floats): for corners on the image or one
+    /// texel off it (all that a `(u, v)` in `[0, 1]` gives) in lanes,
+    /// else lane by lane through [`corners`](Self::corners).
+    #[inline(always)]
+    fn corners_lanes<L: Lanes>(&self, x0: L, y0: L) -> [L::Index; 4] {
+        let (one, zero, below) = (L::splat(1.0), L::splat(0.0), L::splat(-1.0));
+        let (w, h) = (
+            L::splat(self.width as f32),
+            L::splat((self.height - 1) as f32),
+        );
+        let near = below.le(x0) & x0.lt(w) & below.le(y0) & y0.le(h);
+        if L::bits(near) != u32::MAX >> (32 - L::LANES) {
+            return self.corners_by_lane(x0, y0);
+        }
+        // `wrap`: −1 is the last column, `w` the first; `clamp`: −1 is
+        // row 0, `h + 1` row `h`.
+        let next = x0 + one;
+        let i = [
+            L::select(x0.lt(zero), x0 + w, x0).to_index(),
+            L::select(w.le(next), next - w, next).to_index(),
+        ];
+        let j = [y0.max(zero).to_index(), (y0 + one).min(h).to_index()];
+        let width = L::index_splat(self.width as i32);
+        let three = L::index_splat(3);
+        let at = |i: L::Index, j: L::Index| TexelIndex::mul(TexelIndex::mul(j, width) + i, three);
+        [
+            at(i[0], j[0]),
+            at(i[1], j[0]),
+            at(i[0], j[1]),
+            at(i[1], j[1]),
+        ]
+    }
+
+    /// [`corners_lanes`](Self::corners_lanes) lane by lane (corners off
+    /// the image, NaN).
+    #[cold]
+    #[inline(never)]
+    fn corners_by_lane<L: Lanes>(&self, x0: L, y0: L) -> [L::Index; 4] {
+        const MAX: usize = 16;
+        let (mut xs, mut ys) = ([0.0f32; MAX], [0.0f32; MAX]);
+        x0.write_to(&mut xs[..L::LANES]);
+        y0.write_to(&mut ys[..L::LANES]);
+        let mut at = [[0i32; MAX]; 4];
+        for l in 0..L::LANES {
+            for (k, t) in self.corners(xs[l], ys[l]).into_iter().enumerate() {
+                at[k][l] = (t * 3) as i32;
+            }
+        }
+        at.map(|a| L::index_from_slice(&a[..L::LANES], 0))
+    }
+
+    /// The image looked up bilinearly at `(u, v)`.
+    #[inline]
+    fn radiance_at(&self, [u, v]: [f32; 2]) -> V3<f32> {
+        let x = u * self.width as f32 - 0.5;
+        let y = v * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let [a, b, c, e] = self.corners(x0, y0).map(|k| self.texels[k]);
         let mix = |k: usize| {
             let top = a[k] + (b[k] - a[k]) * fx;
             let bottom = c[k] + (e[k] - c[k]) * fx;
@@ -323,75 +463,79 @@ impl EnvLight {
         V3::new(mix(0), mix(1), mix(2))
     }
 
-    /// [`radiance_and_pdf`](Self::radiance_and_pdf) of the world
-    /// directions `d` (unit) in the first `n` lanes, at 8 or 16 lanes:
-    /// the same bits in each lane. The arithmetic is in lanes; the texel
-    /// and density reads, one lane at a time (lanes past `n` read
-    /// nothing and hold zeros).
+    /// [`radiance_at`](Self::radiance_at) lane by lane, the same bits in
+    /// each lane: the arithmetic in lanes, the four texels' channels read
+    /// by gathers (the texels' indices from
+    /// [`corners_lanes`](Self::corners_lanes)).
     #[inline(always)]
-    pub fn radiance_and_pdf_lanes<L: Lanes>(&self, d: V3<L>, n: usize) -> (V3<L>, L) {
-        const MAX: usize = 16;
-        assert!(L::LANES <= MAX && n <= L::LANES);
-        let [u, v] = self.uv_of(d);
-        // The bilinear lookup (`radiance_at`).
+    fn radiance_at_lanes<L: Lanes>(&self, u: L, v: L) -> V3<L> {
         let x = u * L::splat(self.width as f32) - L::splat(0.5);
         let y = v * L::splat(self.height as f32) - L::splat(0.5);
         let (x0, y0) = (floor(x), floor(y));
         let (fx, fy) = (x - x0, y - y0);
-        let (mut xs, mut ys) = ([0.0f32; MAX], [0.0f32; MAX]);
-        x0.write_to(&mut xs[..L::LANES]);
-        y0.write_to(&mut ys[..L::LANES]);
-        // The four texels, channel by channel: a, b on the top row, c, e
-        // below (as `radiance_at` names them).
-        let mut texel = [[[0.0f32; MAX]; 3]; 4];
-        let (w, h) = (self.width as i64, self.height as i64 - 1);
-        let wrap = |i: i64| {
-            if (0..w).contains(&i) {
-                i
-            } else {
-                i.rem_euclid(w)
-            }
-        };
-        for l in 0..n {
-            let (i0, j0) = (xs[l] as i64, ys[l] as i64);
-            let i = [wrap(i0) as usize, wrap(i0 + 1) as usize];
-            let j = [j0.clamp(0, h) as usize, (j0 + 1).clamp(0, h) as usize];
-            for (k, (i, j)) in [(i[0], j[0]), (i[1], j[0]), (i[0], j[1]), (i[1], j[1])]
-                .into_iter()
-                .enumerate()
-            {
-                let t = self.texels[j * self.width + i];
-                for c in 0..3 {
-                    texel[k][c][l] = t[c];
-                }
-            }
-        }
-        let lanes = |c: &[f32; MAX]| L::from_slice(&c[..L::LANES], 0.0);
+        let at = self.corners_lanes(x0, y0);
+        let floats: &[f32] = bytemuck::cast_slice(&self.texels);
         let mix = |c: usize| {
-            let [a, b, cc, e] = [0, 1, 2, 3].map(|k| lanes(&texel[k][c]));
+            let [a, b, cc, e] = at.map(|at| L::gather_f32(&floats[c..], at));
             let top = a + (b - a) * fx;
             let bottom = cc + (e - cc) * fx;
             top + (bottom - top) * fy
         };
-        let radiance = V3::new(mix(0), mix(1), mix(2));
-        // The density (`pdf_at`).
-        if self.is_black() {
-            return (radiance, L::splat(0.0));
+        V3::new(mix(0), mix(1), mix(2))
+    }
+
+    /// [`radiance_and_pdf`](Self::radiance_and_pdf) of the world
+    /// directions `d` (unit) in the first `n` lanes, at 8 or 16 lanes:
+    /// the same bits in each lane. The arithmetic is in lanes, the texel
+    /// and density reads are gathers (lanes past `n` hold zeros).
+    #[inline(always)]
+    pub fn radiance_and_pdf_lanes<L: Lanes>(&self, d: V3<L>, n: usize) -> (V3<L>, L) {
+        assert!(L::LANES <= LANE_NUMBERS.len() && n <= L::LANES);
+        if !self.gathers {
+            return self.radiance_and_pdf_by_lane(d, n);
         }
         let zero = L::splat(0.0);
+        let live = L::from_slice(&LANE_NUMBERS[..L::LANES], 0.0).lt(L::splat(n as f32));
+        let [u, v] = self.uv_of(d);
+        let radiance = self.radiance_at_lanes(u, v);
+        let radiance = V3::select(live, radiance, V3::new(zero, zero, zero));
+        // The density (`pdf_at`).
+        if self.is_black() {
+            return (radiance, zero);
+        }
         let s2 = L::splat(1.0) - d.y * d.y;
         let sin = L::select(zero.lt(s2), s2, zero).sqrt();
-        let (mut us, mut vs) = ([0.0f32; MAX], [0.0f32; MAX]);
-        (u * L::splat(self.cols as f32)).write_to(&mut us[..L::LANES]);
-        (v * L::splat(self.rows as f32)).write_to(&mut vs[..L::LANES]);
-        let mut density = [0.0f32; MAX];
-        for l in 0..n {
-            let c = (us[l] as usize).min(self.cols - 1);
-            let r = (vs[l] as usize).min(self.rows - 1);
-            density[l] = self.density[r * self.cols + c];
+        // `(x as usize).min(n − 1)`: NaN and below 0 are 0.
+        let cell = |x: L, n: usize| {
+            let x = L::select(zero.lt(x), x, zero).min(L::splat((n - 1) as f32));
+            floor(x).to_index()
+        };
+        let c = cell(u * L::splat(self.cols as f32), self.cols);
+        let r = cell(v * L::splat(self.rows as f32), self.rows);
+        let at = TexelIndex::mul(r, L::index_splat(self.cols as i32)) + c;
+        let pdf = L::gather_f32(&self.density, at) / (L::splat(2.0 * PI * PI) * sin);
+        (radiance, L::select(zero.lt(sin) & live, pdf, zero))
+    }
+
+    /// [`radiance_and_pdf_lanes`](Self::radiance_and_pdf_lanes) lane by
+    /// lane (an image too large to index by gathers).
+    #[cold]
+    #[inline(never)]
+    fn radiance_and_pdf_by_lane<L: Lanes>(&self, d: V3<L>, n: usize) -> (V3<L>, L) {
+        const MAX: usize = 16;
+        let mut dirs = [[0.0f32; MAX]; 3];
+        for (k, c) in [d.x, d.y, d.z].into_iter().enumerate() {
+            c.write_to(&mut dirs[k][..L::LANES]);
         }
-        let pdf = lanes(&density) / (L::splat(2.0 * PI * PI) * sin);
-        (radiance, L::select(zero.lt(sin), pdf, zero))
+        let mut out = [[0.0f32; MAX]; 4];
+        for l in 0..n {
+            let (r, p) = self.radiance_and_pdf(V3::new(dirs[0][l], dirs[1][l], dirs[2][l]));
+            for (k, x) in [r.x, r.y, r.z, p].into_iter().enumerate() {
+                out[k][l] = x;
+            }
+        }
+        let [x, y, z, p] = out.map(|c| L::from_slice(&c[..L::LANES], 0.0));
+        (V3::new(x, y, z), p)
     }
 
     /// The density per unit solid angle with which [`sample`](Self::sample)
@@ -434,9 +578,9 @@ impl EnvLight {
         let v = (r as f32 + fv) / self.rows as f32;
         // φ = 2π(u − ½), as a fraction of a turn in [0, 1).
         let turn = if u < 0.5 { u + 0.5 } else { u - 0.5 };
-        let (sin_phi, cos_phi) = crate::math::sin_cos_2pi(turn);
+        let (sin_phi, cos_phi) = sin_cos_2pi(turn);
         // θ = πv, a fraction v/2 of a turn.
-        let (sin_t, cos_t) = crate::math::sin_cos_2pi(v * 0.5);
+        let (sin_t, cos_t) = sin_cos_2pi(v * 0.5);
         if sin_t <= 0.0 {
             return None;
         }
@@ -452,6 +596,78 @@ impl EnvLight {
             radiance: self.radiance_at([u, v]),
             pdf,
         })
+    }
+
+    /// [`sample`](Self::sample) lane by lane, at 8 or 16 lanes: each
+    /// lane's direction, radiance and density, and the lanes where
+    /// [`sample`](Self::sample) gives one (the others hold what they
+    /// hold); in those lanes the same bits as [`sample`](Self::sample).
+    /// The row, then the cell, is picked by [`pick_lanes`]; the angles'
+    /// sines and cosines are [`sin_cos_2pi`]'s in lanes; the density and
+    /// the texels are gathered.
+    #[inline(always)]
+    pub fn sample_lanes<L: Lanes>(&self, [u0, u1]: [L; 2]) -> (EnvSample<L>, L::Mask) {
+        let zero = L::splat(0.0);
+        if self.is_black() {
+            let none = V3::new(zero, zero, zero);
+            let sample = EnvSample {
+                dir: none,
+                radiance: none,
+                pdf: zero,
+            };
+            return (sample, zero.lt(zero));
+        }
+        if !self.gathers {
+            return self.sample_by_lane([u0, u1]);
+        }
+        let (r, row, fv) = pick_lanes(&self.marginal, L::index_splat(0), self.rows, u0);
+        let row = TexelIndex::mul(row, L::index_splat(self.cols as i32));
+        let (c, cell, fu) = pick_lanes(&self.conditional, row, self.cols, u1);
+        let u = (c + fu) / L::splat(self.cols as f32);
+        let v = (r + fv) / L::splat(self.rows as f32);
+        let half = L::splat(0.5);
+        let turn = L::select(u.lt(half), u + half, u - half);
+        let (sin_phi, cos_phi) = sin_cos_2pi(turn);
+        let (sin_t, cos_t) = sin_cos_2pi(v * half);
+        let l = V3::new(sin_t * cos_phi, cos_t, sin_t * sin_phi);
+        let (cr, sr) = (L::splat(self.cos_r), L::splat(self.sin_r));
+        let dir = V3::new(l.x * cr + l.z * sr, l.y, l.z * cr - l.x * sr);
+        let pdf = L::gather_f32(&self.density, cell) / (L::splat(2.0 * PI * PI) * sin_t);
+        let sample = EnvSample {
+            dir,
+            radiance: self.radiance_at_lanes(u, v),
+            pdf,
+        };
+        (sample, zero.lt(sin_t) & zero.lt(pdf))
+    }
+
+    /// [`sample_lanes`](Self::sample_lanes) lane by lane (an image too
+    /// large to index by gathers).
+    #[cold]
+    #[inline(never)]
+    fn sample_by_lane<L: Lanes>(&self, u: [L; 2]) -> (EnvSample<L>, L::Mask) {
+        const MAX: usize = 16;
+        let mut us = [[0.0f32; MAX]; 2];
+        u[0].write_to(&mut us[0][..L::LANES]);
+        u[1].write_to(&mut us[1][..L::LANES]);
+        // Direction, radiance, density, and 1 where there is a sample.
+        let mut out = [[0.0f32; MAX]; 8];
+        for l in 0..L::LANES {
+            if let Some(s) = self.sample([us[0][l], us[1][l]]) {
+                let (d, e) = (s.dir, s.radiance);
+                let all = [d.x, d.y, d.z, e.x, e.y, e.z, s.pdf, 1.0];
+                for (k, x) in all.into_iter().enumerate() {
+                    out[k][l] = x;
+                }
+            }
+        }
+        let [x, y, z, r, g, b, pdf, some] = out.map(|c| L::from_slice(&c[..L::LANES], 0.0));
+        let sample = EnvSample {
+            dir: V3::new(x, y, z),
+            radiance: V3::new(r, g, b),
+            pdf,
+        };
+        (sample, L::splat(0.0).lt(some))
     }
 }
 
@@ -804,9 +1020,13 @@ mod tests {
             let (lx, ly, lz, p) = (l.x.to_vec(), l.y.to_vec(), l.z.to_vec(), p.to_vec());
             for (i, &d) in chunk[..n].iter().enumerate() {
                 let (want, want_pdf) = env.radiance_and_pdf(d);
-                let got = V3::new(lx[i], ly[i], lz[i]);
-                assert_eq!(bits(got), bits(want), "{d:?}");
-                assert_eq!(p[i].to_bits(), want_pdf.to_bits(), "{d:?}");
+                let got = [lx[i], ly[i], lz[i]];
+                let want = [want.x, want.y, want.z];
+                assert!(
+                    (0..3).all(|c| same(got[c], want[c])),
+                    "{d:?}: {got:?} {want:?}"
+                );
+                assert!(same(p[i], want_pdf), "{d:?}: {} {want_pdf}", p[i]);
             }
         }
     }
@@ -822,11 +1042,30 @@ mod tests {
             e.rotation_deg = deg;
             cases.push((EnvLight::new(&e), directions(deg)));
         }
+        // One texel wide, one high; black rows and columns.
+        for (w, h, deg) in [(1, 4, 12.0), (8, 1, 0.0)] {
+            let mut e = image(w, h, f);
+            e.rotation_deg = deg;
+            cases.push((EnvLight::new(&e), directions(deg)));
+        }
+        let striped = |i: u32, j: u32| [if i % 3 != 1 && j % 4 != 2 { 1.0 } else { 0.0 }, 0.2, 0.0];
+        cases.push((EnvLight::new(&image(12, 8, striped)), directions(0.0)));
         // A black one: no density.
         cases.push((
             EnvLight::new(&image(4, 2, |_, _| [0.0; 3])),
             directions(0.0),
         ));
+        // Directions that are no directions: NaN, zero, infinite.
+        let odd = [
+            V3::new(f32::NAN, 0.0, 1.0),
+            V3::new(0.0, f32::NAN, 0.0),
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(f32::INFINITY, 1.0, 0.0),
+            V3::new(1.0, -f32::INFINITY, 0.0),
+        ];
+        for (_, dirs) in &mut cases {
+            dirs.extend(odd);
+        }
         cases
     }
 
@@ -847,6 +1086,217 @@ mod tests {
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,fma")]
     unsafe fn lanes_equal_scalar_16(env: &EnvLight, dirs: &[V3<f32>]) {
         lanes_equal_scalar::<crate::accel::simd::F32x16>(env, dirs);
+    }
+
+    /// Equal bits, or both NaN (a NaN's payload is the compiler's
+    /// choice of operand order).
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    /// Awkward numbers for the searches of `sums`: 0, the largest below
+    /// 1, each sum and its neighbours (ties, zeros), 1 and past it, NaN,
+    /// and `extra` more from a generator.
+    fn awkward(sums: &[f32], extra: usize) -> Vec<f32> {
+        let mut u = vec![0.0f32, -0.0, ONE_MINUS_EPSILON, 1.0, 1.5, f32::NAN];
+        for &c in sums {
+            u.extend([c, c.next_down(), c.next_up()]);
+        }
+        let mut rng = crate::integrator::sampler::PathRng::new(9, 8, 7);
+        u.extend((0..extra).map(|_| rng.next_f32()));
+        u
+    }
+
+    /// [`pick_lanes`] at `L`'s width against [`pick`], lane by lane, bit
+    /// for bit: every lane searching its own one of `tables` (laid end to
+    /// end, as the conditional sums are) for each of `u`.
+    fn picks_equal_scalar<L: Lanes>(tables: &[Vec<f32>], u: &[f32]) {
+        let n = tables[0].len();
+        let all: Vec<f32> = tables.concat();
+        for (k, chunk) in u.chunks(L::LANES).enumerate() {
+            let rows: Vec<usize> = (0..L::LANES).map(|l| (k + l) % tables.len()).collect();
+            let base: Vec<i32> = rows.iter().map(|&r| (r * n) as i32).collect();
+            let (at, us) = (L::index_from_slice(&base, 0), L::from_slice(chunk, 0.25));
+            let (got_k, got_at, got_t) = pick_lanes(&all, at, n, us);
+            let (got_k, got_t) = (got_k.to_vec(), got_t.to_vec());
+            let mut got_at_lanes = vec![0u32; L::LANES];
+            L::index_write_to(got_at, &mut got_at_lanes);
+            let got_at = got_at_lanes;
+            for (l, &u) in chunk.iter().enumerate() {
+                let (want_k, want_t) = pick(&tables[rows[l]], u);
+                assert_eq!(got_k[l], want_k as f32, "u {u}: k in {:?}", tables[rows[l]]);
+                assert_eq!(got_at[l] as usize, rows[l] * n + want_k, "u {u}");
+                assert!(
+                    same(got_t[l], want_t),
+                    "u {u}: {} against {want_t}",
+                    got_t[l]
+                );
+            }
+        }
+    }
+
+    /// Running sums with ties, leading and trailing flats, one entry, two,
+    /// a power of two and one past it.
+    fn awkward_sums() -> Vec<Vec<Vec<f32>>> {
+        let mut rng = crate::integrator::sampler::PathRng::new(1, 1, 2);
+        let mut random = |n: usize, zeros: bool| {
+            let w: Vec<f32> = (0..n)
+                .map(|_| {
+                    let x = rng.next_f32();
+                    if zeros && x < 0.4 { 0.0 } else { x }
+                })
+                .collect();
+            let total: f32 = w.iter().sum::<f32>().max(f32::MIN_POSITIVE);
+            let mut run = 0.0;
+            let mut sums: Vec<f32> = w
+                .iter()
+                .map(|x| {
+                    run += x;
+                    (run / total).min(1.0)
+                })
+                .collect();
+            *sums.last_mut().unwrap() = 1.0;
+            sums
+        };
+        vec![
+            vec![vec![1.0]],
+            vec![vec![0.5, 1.0], vec![0.0, 1.0], vec![1.0, 1.0]],
+            vec![
+                vec![0.0, 0.0, 0.25, 0.25, 0.25, 1.0, 1.0],
+                vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 1.0],
+            ],
+            vec![random(8, true), random(8, false), random(8, true)],
+            vec![random(9, true), random(9, true)],
+            vec![random(512, true), random(512, false)],
+            vec![random(33, true)],
+        ]
+    }
+
+    #[test]
+    fn lane_picks_are_the_scalar_picks_at_8_and_16_lanes() {
+        for tables in awkward_sums() {
+            let u = awkward(&tables.concat(), 200);
+            picks_equal_scalar::<wide::f32x8>(&tables, &u);
+            #[cfg(target_arch = "x86_64")]
+            if crate::accel::simd::SimdWidth::W16.is_available() {
+                // SAFETY: the CPU has AVX-512 (checked just above).
+                unsafe { picks_equal_scalar_16(&tables, &u) };
+            }
+        }
+    }
+
+    /// [`picks_equal_scalar`] at 16 lanes, compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,fma")]
+    unsafe fn picks_equal_scalar_16(tables: &[Vec<f32>], u: &[f32]) {
+        picks_equal_scalar::<crate::accel::simd::F32x16>(tables, u);
+    }
+
+    /// [`EnvLight::sample_lanes`] at `L`'s width against
+    /// [`EnvLight::sample`], lane by lane: the same lanes drawn, and in
+    /// them the same bits.
+    fn samples_equal_scalar<L: Lanes>(env: &EnvLight, u: &[[f32; 2]]) -> usize {
+        let mut drawn = 0;
+        for chunk in u.chunks(L::LANES) {
+            let col =
+                |k: usize| L::from_slice(&chunk.iter().map(|u| u[k]).collect::<Vec<_>>(), 0.5);
+            let (s, some) = env.sample_lanes([col(0), col(1)]);
+            let some = L::bits(some);
+            let v = |v: V3<L>| [v.x.to_vec(), v.y.to_vec(), v.z.to_vec()];
+            let (dir, radiance, pdf) = (v(s.dir), v(s.radiance), s.pdf.to_vec());
+            for (l, &u) in chunk.iter().enumerate() {
+                let want = env.sample(u);
+                assert_eq!(some & (1 << l) != 0, want.is_some(), "u {u:?}");
+                let Some(want) = want else { continue };
+                drawn += 1;
+                let want_v = |w: V3<f32>| [w.x, w.y, w.z];
+                for (got, want) in [(&dir, want_v(want.dir)), (&radiance, want_v(want.radiance))] {
+                    for c in 0..3 {
+                        assert!(
+                            same(got[c][l], want[c]),
+                            "u {u:?}: {} against {}",
+                            got[c][l],
+                            want[c]
+                        );
+                    }
+                }
+                assert!(
+                    same(pdf[l], want.pdf),
+                    "u {u:?}: pdf {} against {}",
+                    pdf[l],
+                    want.pdf
+                );
+            }
+        }
+        drawn
+    }
+
+    /// Environments for the lane tests: a sky with a sun (turned), a
+    /// small odd one (turned past a turn), one 1 texel wide, one 1 texel
+    /// high, one texel, one with black rows and columns (running sums
+    /// with ties and rows of no weight), one bright texel on black, and a
+    /// black one; each with numbers at its running sums and around them.
+    fn sample_cases() -> Vec<(EnvLight, Vec<[f32; 2]>)> {
+        let sky = |i: u32, j: u32| {
+            let spot = if (i, j) == (11, 3) { 500.0 } else { 0.0 };
+            [1.0 + i as f32 * 0.1 + spot, 0.5 + j as f32, (i * j) as f32]
+        };
+        let striped = |i: u32, j: u32| {
+            let on = i % 3 != 1 && j % 4 != 2;
+            [if on { 1.0 + (i + j) as f32 } else { 0.0 }, 0.2, 0.0]
+        };
+        let one = |i: u32, j: u32| {
+            if (i, j) == (5, 2) {
+                [3.0, 2.0, 1.0]
+            } else {
+                [0.0; 3]
+            }
+        };
+        let images: Vec<(u32, u32, f32, &dyn Fn(u32, u32) -> [f32; 3])> = vec![
+            (16, 8, 37.0, &sky),
+            (5, 3, -201.5, &sky),
+            (1, 4, 12.0, &sky),
+            (8, 1, 0.0, &sky),
+            (1, 1, 90.0, &sky),
+            (12, 8, 0.0, &striped),
+            (8, 4, -30.0, &one),
+            (4, 2, 0.0, &|_, _| [0.0; 3]),
+        ];
+        images
+            .into_iter()
+            .map(|(w, h, deg, f)| {
+                let mut e = image(w, h, f);
+                e.rotation_deg = deg;
+                let env = EnvLight::new(&e);
+                let u0 = awkward(&env.marginal, 300);
+                let u1 = awkward(&env.conditional, 300);
+                let mut rng = crate::integrator::sampler::PathRng::new(3, 1, 4);
+                let mut u: Vec<[f32; 2]> = u0.iter().map(|&a| [a, rng.next_f32()]).collect();
+                u.extend(u1.iter().map(|&b| [rng.next_f32(), b]));
+                u.extend(u0.iter().zip(u1.iter().rev()).map(|(&a, &b)| [a, b]));
+                (env, u)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lane_samples_are_the_scalar_bits_at_8_and_16_lanes() {
+        for (env, u) in sample_cases() {
+            let drawn = samples_equal_scalar::<wide::f32x8>(&env, &u);
+            assert_eq!(drawn == 0, env.is_black(), "{} × {}", env.width, env.height);
+            #[cfg(target_arch = "x86_64")]
+            if crate::accel::simd::SimdWidth::W16.is_available() {
+                // SAFETY: the CPU has AVX-512 (checked just above).
+                unsafe { samples_equal_scalar_16(&env, &u) };
+            }
+        }
+    }
+
+    /// [`samples_equal_scalar`] at 16 lanes, compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,fma")]
+    unsafe fn samples_equal_scalar_16(env: &EnvLight, u: &[[f32; 2]]) {
+        samples_equal_scalar::<crate::accel::simd::F32x16>(env, u);
     }
 
     #[test]

@@ -29,7 +29,7 @@
 //! `P(environment) × p(direction)` per unit solid angle. Scenes without
 //! one sample exactly as before.
 
-use super::environment::EnvLight;
+use super::environment::{EnvLight, pick_lanes, sorted};
 use super::light_tree::{LightBounds, LightTree, TREE_MIN_EMITTERS};
 use super::punctual::Punctual;
 use crate::accel::shape::{AreaShape, Family, Kinds, Make, Shape, Shapes, Visit};
@@ -38,7 +38,7 @@ pub use crate::accel::triangle::square_to_triangle;
 use crate::math::{Real, V3, acos, sin_cos_2pi};
 use crate::scene::Scene;
 use glam::Vec3;
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 /// The scene's emitters, with what sampling them needs.
 #[derive(Clone, Debug, Default)]
@@ -88,6 +88,15 @@ pub struct Lights {
     /// Where moreover that emitter is a rectangle of the first kind: it in
     /// all sixteen lanes of [`Pair`], for [`sample_16`](Self::sample_16).
     single_16: Option<Box<Emitter<Pair>>>,
+    /// Whether [`sample_8`](Self::sample_8) picks among the emitters,
+    /// punctual lights and environment in lanes ([`pick_lanes`]): the
+    /// scene has some of the latter two, and its running sums never
+    /// decrease and hold no NaN (a scene of overflowing size may make
+    /// them NaN; then lane by lane).
+    pick_in_lanes: bool,
+    /// Where the scene has exactly one emitter besides punctual lights or
+    /// an environment, and no tree: it in all eight lanes.
+    only_8: Option<Box<Emitter<f32x8>>>,
 }
 
 /// One emitter (`R = f32`) or eight (`R = f32x8`) of any kind (a
@@ -617,6 +626,11 @@ impl Lights {
         if let Some(last) = lights.cdf.last_mut() {
             *last = 1.0;
         }
+        lights.pick_in_lanes =
+            lights.has_extras() && lights.cdf.len() <= 1 << 24 && sorted(&lights.cdf);
+        if let ([e], None, true) = (&lights.emitters[..], &lights.tree, lights.has_extras()) {
+            lights.only_8 = Some(Box::new(Emitter::splat(e)));
+        }
         if let Some(e) = lights.single().filter(|_| lights.tree.is_none()).copied() {
             lights.single_8 = Some(Box::new(Emitter::splat(&e)));
             if lights.has_rectangles && !lights.mixed {
@@ -695,17 +709,7 @@ impl Lights {
             };
         }
         if let Some(p) = self.punctual.get(k - n) {
-            let s = p.sample(o, [u0, u[1]], self.far);
-            return LightPoint {
-                point: s.point,
-                normal: s.normal,
-                emission: s.emission,
-                pdf_area: 0.0,
-                pdf_solid_angle: s.pdf,
-                scale: 0.0,
-                prim: NO_PRIM_BITS,
-                delta: if s.delta { 1.0 } else { 0.0 },
-            };
+            return punctual_point(p, o, [u0, u[1]], self.far);
         }
         match self
             .environment
@@ -728,9 +732,11 @@ impl Lights {
 
     /// [`Lights::sample`] for up to eight shading points `o` and numbers
     /// `u`, one per lane (lanes past `lanes` get a point that carries no
-    /// light): [`pick_8`](Self::pick_8) and [`point_on`](Self::point_on)
-    /// where the scene has no environment, else [`Lights::sample`] lane by
-    /// lane (the same bits).
+    /// light), the same bits: [`pick_8`](Self::pick_8) and
+    /// [`point_on`](Self::point_on) where the scene has no environment or
+    /// punctual lights; else the pick among the emitters, punctual lights
+    /// and environment in lanes, and the environment's directions drawn in
+    /// lanes ([`EnvLight::sample_lanes`]).
     #[inline(always)]
     pub fn sample_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
         if let Some(e) = &self.single_8 {
@@ -740,35 +746,104 @@ impl Lights {
         if !self.has_extras() {
             let (emitters, u0) = match &self.tree {
                 None => self.pick_8(u[0], lanes),
-                Some(tree) => self.pick_by_tree_8(tree, o, u[0], lanes),
+                Some(tree) => self.pick_by_tree_8(tree, o, u[0], (1 << lanes) - 1),
             };
             return self.point_on(&emitters, o, [u0, u[1]]);
+        }
+        if self.pick_in_lanes {
+            return self.sample_extras_8(o, u, lanes);
         }
         let none = LightPoint::on_by_area(&Emitter::NONE, [0.0, 0.0]);
         let (ox, oy, oz) = (o.x.to_array(), o.y.to_array(), o.z.to_array());
         let (u0, u1) = (u[0].to_array(), u[1].to_array());
-        let points: [LightPoint<f32>; 8] = std::array::from_fn(|l| {
+        LightPoint::lanes(std::array::from_fn(|l| {
             if l < lanes {
                 self.sample(V3::new(ox[l], oy[l], oz[l]), [u0[l], u1[l]])
                     .unwrap_or(none)
             } else {
                 none
             }
-        });
-        let lane = |f: &dyn Fn(&LightPoint<f32>) -> f32| f32x8::from(points.each_ref().map(f));
-        let lane3 = |f: &dyn Fn(&LightPoint<f32>) -> V3<f32>| {
-            V3::new(lane(&|p| f(p).x), lane(&|p| f(p).y), lane(&|p| f(p).z))
-        };
-        LightPoint {
-            point: lane3(&|p| p.point),
-            normal: lane3(&|p| p.normal),
-            emission: lane3(&|p| p.emission),
-            pdf_area: lane(&|p| p.pdf_area),
-            pdf_solid_angle: lane(&|p| p.pdf_solid_angle),
-            scale: lane(&|p| p.scale),
-            prim: lane(&|p| p.prim),
-            delta: lane(&|p| p.delta),
+        }))
+    }
+
+    /// [`sample_with_extras`](Self::sample_with_extras) in lanes, the
+    /// same bits in each: the running sums searched in lanes
+    /// ([`pick_lanes`]); the lanes that pick the environment draw their
+    /// directions in lanes ([`EnvLight::sample_lanes`]), those that pick
+    /// an emitter take their points in lanes ([`point_on`](Self::point_on),
+    /// the emitters gathered lane by lane where there are several, or
+    /// picked by the tree), those that pick a punctual light lane by lane
+    /// ([`Punctual::sample`]). Each of the three only where some lane
+    /// picks it; lanes past `lanes` get a point that carries no light.
+    #[inline(always)]
+    fn sample_extras_8(&self, o: V3<f32x8>, u: [f32x8; 2], lanes: usize) -> LightPoint<f32x8> {
+        let (k, _, u0) = pick_lanes(&self.cdf, i32x8::splat(0), self.cdf.len(), u[0]);
+        let live = (1u32 << lanes) - 1;
+        let n = self.cdf_emitters();
+        let to_emitters = k.simd_lt(f32x8::splat(n as f32)).to_bitmask() & live;
+        let past = f32x8::splat((n + self.punctual.len()) as f32);
+        let to_environment = past.simd_le(k).to_bitmask() & live;
+        let to_punctual = live & !to_emitters & !to_environment;
+        let mut p = LightPoint::splat(&LightPoint::on_by_area(&Emitter::NONE, [0.0, 0.0]));
+        if to_environment != 0 {
+            let mut dark = to_environment;
+            if let Some(env) = &self.environment {
+                let (s, some) = env.sample_lanes([u0, u[1]]);
+                let drawn = LightPoint {
+                    point: s.dir.mul_add(f32x8::splat(self.far), o),
+                    normal: -s.dir,
+                    emission: s.radiance,
+                    pdf_area: f32x8::splat(0.0),
+                    pdf_solid_angle: f32x8::splat(self.environment_probability) * s.pdf,
+                    scale: f32x8::splat(0.0),
+                    prim: f32x8::splat(NO_PRIM_BITS),
+                    delta: f32x8::splat(0.0),
+                };
+                let some = some.to_bitmask() & to_environment;
+                p = LightPoint::select(lane_mask(some), drawn, p);
+                dark &= !some;
+            }
+            if dark != 0 {
+                // No direction: a point on no emitter, for the numbers as
+                // they came.
+                let none = LightPoint::on_by_area(&Emitter::splat(&Emitter::NONE), u);
+                p = LightPoint::select(lane_mask(dark), none, p);
+            }
         }
+        if to_emitters != 0 {
+            let on = match (&self.tree, &self.only_8) {
+                (Some(tree), _) => {
+                    let (emitters, u0) = self.pick_by_tree_8(tree, o, u0, to_emitters);
+                    self.point_on(&emitters, o, [u0, u[1]])
+                }
+                (None, Some(e)) => self.point_on(e, o, [u0, u[1]]),
+                (None, None) => {
+                    let k = k.to_array();
+                    let mut emitters = [&Emitter::NONE; 8];
+                    for (l, e) in emitters.iter_mut().enumerate() {
+                        if to_emitters & (1 << l) != 0 {
+                            *e = &self.emitters[k[l] as usize];
+                        }
+                    }
+                    self.point_on(&Emitter::lanes(emitters), o, [u0, u[1]])
+                }
+            };
+            p = LightPoint::select(lane_mask(to_emitters), on, p);
+        }
+        if to_punctual != 0 {
+            let (k, u0, u1) = (k.to_array(), u0.to_array(), u[1].to_array());
+            let (ox, oy, oz) = (o.x.to_array(), o.y.to_array(), o.z.to_array());
+            let mut points = [LightPoint::on_by_area(&Emitter::NONE, [0.0, 0.0]); 8];
+            for (l, point) in points.iter_mut().enumerate() {
+                if to_punctual & (1 << l) != 0 {
+                    let light = &self.punctual[k[l] as usize - n];
+                    let o = V3::new(ox[l], oy[l], oz[l]);
+                    *point = punctual_point(light, o, [u0[l], u1[l]], self.far);
+                }
+            }
+            p = LightPoint::select(lane_mask(to_punctual), LightPoint::lanes(points), p);
+        }
+        p
     }
 
     /// [`sample_8`](Self::sample_8) for two groups of eight lanes at once
@@ -858,22 +933,23 @@ impl Lights {
         }
     }
 
-    /// [`sample_tree`](Self::sample_tree)'s picks for the first `lanes`
-    /// of eight shading points `o` and numbers `u0`, lane by lane: the
-    /// emitters (with their probabilities there; [`Emitter::NONE`] where
-    /// none faces the point, and past `lanes`) and the stretched numbers.
+    /// [`sample_tree`](Self::sample_tree)'s picks for the lanes `l` of
+    /// eight shading points `o` and numbers `u0` whose bit `1 << l` is set
+    /// in `lanes`, lane by lane: the emitters (with their probabilities
+    /// there; [`Emitter::NONE`] where none faces the point, and in the
+    /// other lanes) and the stretched numbers.
     #[inline(always)]
     fn pick_by_tree_8(
         &self,
         tree: &LightTree,
         o: V3<f32x8>,
         u0: f32x8,
-        lanes: usize,
+        lanes: u32,
     ) -> (Emitter<f32x8>, f32x8) {
         let (ox, oy, oz) = (o.x.to_array(), o.y.to_array(), o.z.to_array());
         let mut u = u0.to_array();
         let mut picked = [Emitter::NONE; 8];
-        for l in 0..lanes {
+        for l in (0..8).filter(|l| lanes & (1 << l) != 0) {
             if let Some((k, pmf, u_l)) = tree.sample(Vec3::new(ox[l], oy[l], oz[l]), u[l]) {
                 picked[l] = self.picked_with(k as usize, self.tree_probability * pmf);
                 u[l] = u_l;
@@ -1171,6 +1247,86 @@ impl LightPoint<Pair> {
             }
         };
         [half(0), half(1)]
+    }
+}
+
+impl<R: Real> LightPoint<R> {
+    /// Lane-wise `if mask { a } else { b }`.
+    #[inline(always)]
+    fn select(mask: R::Mask, a: Self, b: Self) -> Self {
+        Self {
+            point: V3::select(mask, a.point, b.point),
+            normal: V3::select(mask, a.normal, b.normal),
+            emission: V3::select(mask, a.emission, b.emission),
+            pdf_area: R::select(mask, a.pdf_area, b.pdf_area),
+            pdf_solid_angle: R::select(mask, a.pdf_solid_angle, b.pdf_solid_angle),
+            scale: R::select(mask, a.scale, b.scale),
+            prim: R::select(mask, a.prim, b.prim),
+            delta: R::select(mask, a.delta, b.delta),
+        }
+    }
+}
+
+impl LightPoint<f32x8> {
+    /// Eight points, one per lane.
+    #[inline(always)]
+    fn lanes(points: [LightPoint<f32>; 8]) -> Self {
+        let lane = |f: &dyn Fn(&LightPoint<f32>) -> f32| f32x8::from(points.each_ref().map(f));
+        let lane3 = |f: &dyn Fn(&LightPoint<f32>) -> V3<f32>| {
+            V3::new(lane(&|p| f(p).x), lane(&|p| f(p).y), lane(&|p| f(p).z))
+        };
+        LightPoint {
+            point: lane3(&|p| p.point),
+            normal: lane3(&|p| p.normal),
+            emission: lane3(&|p| p.emission),
+            pdf_area: lane(&|p| p.pdf_area),
+            pdf_solid_angle: lane(&|p| p.pdf_solid_angle),
+            scale: lane(&|p| p.scale),
+            prim: lane(&|p| p.prim),
+            delta: lane(&|p| p.delta),
+        }
+    }
+
+    /// One point in all eight lanes.
+    #[inline(always)]
+    fn splat(p: &LightPoint<f32>) -> Self {
+        let v = |v: V3<f32>| V3::new(f32x8::splat(v.x), f32x8::splat(v.y), f32x8::splat(v.z));
+        LightPoint {
+            point: v(p.point),
+            normal: v(p.normal),
+            emission: v(p.emission),
+            pdf_area: f32x8::splat(p.pdf_area),
+            pdf_solid_angle: f32x8::splat(p.pdf_solid_angle),
+            scale: f32x8::splat(p.scale),
+            prim: f32x8::splat(p.prim),
+            delta: f32x8::splat(p.delta),
+        }
+    }
+}
+
+/// The mask of the lanes `l` whose bit `1 << l` is set in `bits`.
+#[inline(always)]
+fn lane_mask(bits: u32) -> f32x8 {
+    let lane = i32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
+    let set = (lane & i32x8::splat(bits as i32)).simd_ne(i32x8::splat(0));
+    bytemuck::cast(set)
+}
+
+/// The point that the punctual light `p` gives the shading point `o` for
+/// the numbers `u` ([`Punctual::sample`]), as [`Lights::sample`] returns
+/// it: a point [`Lights::far`] away for a sun, its density by solid angle.
+#[inline]
+fn punctual_point(p: &Punctual, o: V3<f32>, u: [f32; 2], far: f32) -> LightPoint<f32> {
+    let s = p.sample(o, u, far);
+    LightPoint {
+        point: s.point,
+        normal: s.normal,
+        emission: s.emission,
+        pdf_area: 0.0,
+        pdf_solid_angle: s.pdf,
+        scale: 0.0,
+        prim: NO_PRIM_BITS,
+        delta: if s.delta { 1.0 } else { 0.0 },
     }
 }
 

@@ -74,8 +74,12 @@ pub fn absorb<P>(queue: &mut PathQueue<P>, tables: &Tables) {
 /// environment: radiance += throughput × the environment's radiance ×
 /// its MIS weight ([`escaped`]); camera rays (depth `depth` 0) see it only
 /// where it is visible. The environment is looked up eight rays at a time
-/// ([`EnvLight::radiance_and_pdf_lanes`]: the scalar lookup's bits); the
-/// weights and the suns seen, as [`escaped`] computes them.
+/// ([`EnvLight::radiance_and_pdf_lanes`]: the scalar lookup's bits, the
+/// texels and densities read by gathers); the
+/// weights and the suns seen, as [`escaped`] computes them. Out of line
+/// (one call per depth), so that how the batch loop around it is compiled
+/// does not hang on the lookup's size.
+#[inline(never)]
 pub fn shade_escaped<S: Sampler>(queue: &mut PathQueue<S::Path>, ctx: &Ctx<S>, depth: u32) {
     let n = queue.len();
     let hit = &queue.hit[..n];
