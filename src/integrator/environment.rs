@@ -1252,7 +1252,8 @@ mod tests {
                 [0.0; 3]
             }
         };
-        let images: Vec<(u32, u32, f32, &dyn Fn(u32, u32) -> [f32; 3])> = vec![
+        type Texels<'a> = &'a dyn Fn(u32, u32) -> [f32; 3];
+        let images: Vec<(u32, u32, f32, Texels)> = vec![
             (16, 8, 37.0, &sky),
             (5, 3, -201.5, &sky),
             (1, 4, 12.0, &sky),
