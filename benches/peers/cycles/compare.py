@@ -66,7 +66,11 @@ def relmse(a, ref):
 def job_text(asset, a, spp, seed, adaptive=False):
     extra = ""
     if adaptive and a.noise_threshold is not None:
-        extra = f"noise_threshold = {a.noise_threshold}\n"
+        # One threshold for every run, or one per --spp count.
+        ts = [float(t) for t in str(a.noise_threshold).split(",")]
+        counts = [int(c) for c in a.spp.split(",")]
+        t = ts[counts.index(spp)] if len(ts) == len(counts) and spp in counts else ts[0]
+        extra = f"noise_threshold = {t}\n"
         if a.min_spp is not None:
             extra += f"min_spp = {min(a.min_spp, spp)}\n"
     return f"""[assets]
@@ -187,8 +191,9 @@ def main():
                    help="with --adaptive: Cycles' noise threshold (its default 0.01)")
     p.add_argument("--cycles-min-samples", type=int, default=0,
                    help="with --adaptive: Cycles' minimum samples (0: its automatic choice)")
-    p.add_argument("--noise-threshold", type=float, default=None,
-                   help="wavetrace's adaptive sampling (render.noise_threshold) in the timed renders")
+    p.add_argument("--noise-threshold", default=None,
+                   help="wavetrace's adaptive sampling (render.noise_threshold) in the timed renders: "
+                        "one value, or one per --spp count (then each count is a run's most)")
     p.add_argument("--min-spp", type=int, default=None,
                    help="with --noise-threshold: wavetrace's first round (render.min_spp)")
     a = p.parse_args()
