@@ -339,13 +339,13 @@ impl RenderSettings {
             )));
         }
         if let Some(a) = self.adaptive {
-            if !(a.threshold >= 0.0 && a.threshold.is_finite()) {
+            if !Adaptive::threshold_ok(a.threshold) {
                 return Err(Error::Settings(format!(
                     "the noise threshold must be a number at least 0, not {}",
                     a.threshold
                 )));
             }
-            if a.min_spp > self.spp || (a.min_spp < 2 && a.min_spp < self.spp) {
+            if !Adaptive::min_spp_ok(a.min_spp, self.spp) {
                 return Err(Error::Settings(format!(
                     "adaptive sampling's first round (min_spp {}) must take between 2 and the {} samples per pixel",
                     a.min_spp, self.spp

@@ -152,12 +152,12 @@ impl ViewsArgs {
             threshold,
             min_spp: (self.min_spp).unwrap_or(crate::scene::Adaptive::default_min_spp(spp)),
         };
-        if !(threshold >= 0.0 && threshold.is_finite()) {
+        if !crate::scene::Adaptive::threshold_ok(threshold) {
             return Err(Error::Settings(format!(
                 "--noise-threshold {threshold}: must be a number at least 0"
             )));
         }
-        if a.min_spp > spp || (a.min_spp < 2 && a.min_spp < spp) {
+        if !crate::scene::Adaptive::min_spp_ok(a.min_spp, spp) {
             return Err(Error::Settings(format!(
                 "--min-spp {}: must be between 2 and --spp ({spp})",
                 a.min_spp

@@ -119,6 +119,17 @@ pub struct Adaptive {
 }
 
 impl Adaptive {
+    /// Whether `threshold` can be a noise threshold: a number at least 0.
+    pub fn threshold_ok(threshold: f32) -> bool {
+        threshold >= 0.0 && threshold.is_finite()
+    }
+
+    /// Whether `min_spp` can be the first round of a render of `spp`
+    /// samples per pixel: between 2 and `spp` (or `spp` itself, below 2).
+    pub fn min_spp_ok(min_spp: u32, spp: u32) -> bool {
+        min_spp <= spp && (min_spp >= 2 || min_spp == spp)
+    }
+
     /// The default first round: a sixteenth of `spp`, at least 4 (and at
     /// most `spp`).
     pub fn default_min_spp(spp: u32) -> u32 {

@@ -853,7 +853,7 @@ fn adaptive(t: &Text, r: &RenderFile, spp: u32) -> Result<Option<Adaptive>, Scen
         return Ok(None);
     };
     let th = *threshold.get_ref();
-    if !(th >= 0.0 && th.is_finite()) {
+    if !Adaptive::threshold_ok(th) {
         return Err(t.err(
             threshold.span(),
             "render.noise_threshold",
@@ -863,7 +863,7 @@ fn adaptive(t: &Text, r: &RenderFile, spp: u32) -> Result<Option<Adaptive>, Scen
     let min_spp = match &r.min_spp {
         Some(m) => {
             let v = *m.get_ref();
-            if v > spp || (v < 2 && v < spp) {
+            if !Adaptive::min_spp_ok(v, spp) {
                 return Err(t.err(
                     m.span(),
                     "render.min_spp",
