@@ -7,9 +7,20 @@
 //!
 //! Sampling: a piecewise-constant 2D distribution over the `(u, v)` unit
 //! square on a grid of cells (the image's texels, subdivided to at least
-//! [`MIN_ROWS`] rows), each cell weighted by the largest luminance the
-//! bilinear lookup can return inside it times `sin θ` at its centre (the
-//! solid angle of a row of cells is proportional to it). A row is drawn
+//! [`MIN_ROWS`] rows), each cell weighted by how far the largest luminance
+//! the bilinear lookup can return inside it exceeds the mean of those
+//! maxima over the sphere, times `sin θ` at its centre (the solid angle of
+//! a row of cells is proportional to it). That is *MIS compensation*
+//! (Karlík, Šik, Vévoda, Skřivan and Křivánek, "MIS Compensation:
+//! Optimizing Sampling Techniques in Multiple Importance Sampling", 2019;
+//! pbrt-v4's image infinite light does the same): the directions no
+//! brighter than the mean are left to BSDF sampling, which next-event
+//! estimation always weighs against this density by MIS (a direction of
+//! density 0 gets the BSDF sample's weight 1), and light samples go where
+//! the sky is brighter than BSDF sampling alone would see well — under a
+//! sky with a sun, more of them to the sun, none below the horizon. An
+//! environment with no cell above its mean (a constant colour) keeps the
+//! plain weights. A row is drawn
 //! from the marginal distribution, then a cell of the row, then a point
 //! uniform in the cell. With `θ = π v` and `φ = 2π (u − ½)`, the density
 //! per unit solid angle of a direction is `p(u, v) / (2π² sin θ)`.
@@ -198,6 +209,29 @@ pub fn sorted(sums: &[f32]) -> bool {
     sums.iter().all(|s| !s.is_nan()) && sums.windows(2).all(|w| w[0] <= w[1])
 }
 
+/// MIS compensation of the sampling grid's weights (see the module's
+/// documentation): `weight` holds each cell's largest luminance, row by
+/// row, `sines[r]` the `sin θ` of row `r`'s centre; each becomes
+/// `max(L − L̄, 0) · sin θ`, `L̄` the mean of the cells' luminances by solid
+/// angle, or `L · sin θ` where no cell exceeds `L̄`.
+fn compensate(weight: &mut [f64], sines: &[f64]) {
+    let cols = weight.len() / sines.len().max(1);
+    let solid: f64 = sines.iter().sum::<f64>() * cols as f64;
+    let sum: f64 = weight
+        .chunks(cols.max(1))
+        .zip(sines)
+        .map(|(row, s)| row.iter().sum::<f64>() * s)
+        .sum();
+    let mean = sum / solid;
+    let above = |l: f64| (l - mean).max(0.0);
+    let any = mean.is_finite() && weight.iter().any(|&l| above(l) > 0.0);
+    for (row, s) in weight.chunks_mut(cols.max(1)).zip(sines) {
+        for l in row {
+            *l = if any { above(*l) } else { *l } * s;
+        }
+    }
+}
+
 impl EnvLight {
     /// Turn it to `rotation_deg` (what [`EnvLight::new`] of the same
     /// environment at that rotation gives, bit for bit: the sampling
@@ -238,10 +272,12 @@ impl EnvLight {
             })
             .collect();
         let mut weight = vec![0.0f64; cols * rows];
+        let mut sines = vec![0.0f64; rows];
         let mut mean = 0.0f64;
         for r in 0..rows {
             let theta = (r as f64 + 0.5) / rows as f64 * std::f64::consts::PI;
             let sin = theta.sin();
+            sines[r] = sin;
             // Texel rows touched: the cell's v-range in texel units, less ½.
             let (lo, hi) = touched(r);
             let row_texels: Vec<&[f32]> = (lo..=hi)
@@ -257,9 +293,10 @@ impl EnvLight {
                         most = most.max(row[i]);
                     }
                 }
-                weight[r * cols + c] = f64::from(most) * sin;
+                weight[r * cols + c] = f64::from(most);
             }
         }
+        compensate(&mut weight, &sines);
         for (j, row) in texels.chunks(width).enumerate() {
             let theta0 = j as f64 / height as f64 * std::f64::consts::PI;
             let theta1 = (j + 1) as f64 / height as f64 * std::f64::consts::PI;
@@ -1323,10 +1360,48 @@ mod tests {
     }
 
     #[test]
+    fn compensation_leaves_the_cells_below_the_mean_to_bsdf_sampling() {
+        // Rows brighter towards the top: the cells whose luminance is at
+        // most the sphere's mean have density 0, the others density in
+        // proportion to (L − mean) sin θ.
+        let env = EnvLight::new(&image(4, 32, |_, j| [(32 - j) as f32; 3]));
+        let sin = |r: usize| ((r as f64 + 0.5) / 32.0 * std::f64::consts::PI).sin();
+        let solid: f64 = (0..32).map(sin).sum();
+        // The bilinear lookup's largest value in a cell of row r is that
+        // of the texel row above it (or its own, at the top); the mean is
+        // of those, by solid angle.
+        let most = |r: usize| f64::from(32 - r.saturating_sub(1) as u32);
+        let mean = (0..32).map(|r| most(r) * sin(r)).sum::<f64>() / solid;
+        let want: Vec<f64> = (0..32)
+            .map(|r| (most(r) - mean).max(0.0) * sin(r))
+            .collect();
+        let total: f64 = want.iter().sum::<f64>() * 4.0;
+        for (r, want) in want.iter().enumerate() {
+            for c in 0..4 {
+                let d = f64::from(env.density[r * 4 + c]);
+                let w = want / total * 128.0;
+                assert!(
+                    (d - w).abs() <= 1e-5 * w.max(1.0),
+                    "row {r}: {d} against {w}"
+                );
+            }
+        }
+        assert!(env.density[31 * 4] == 0.0 && env.density[0] > 0.0);
+        // A constant sky has no cell above its mean: the plain weights.
+        let flat = EnvLight::new(&image(4, 32, |_, _| [0.5; 3]));
+        for r in 0..32 {
+            let w = sin(r) / (0..32).map(sin).sum::<f64>() * 32.0;
+            let d = f64::from(flat.density[r * 4]);
+            assert!((d - w).abs() <= 1e-5 * w, "row {r}: {d} against {w}");
+        }
+    }
+
+    #[test]
     fn the_density_integrates_to_one_over_the_sphere() {
-        // ∫ pdf dω by the midpoint rule in (φ, cos θ).
+        // ∫ pdf dω by the midpoint rule in (φ, cos θ), on a grid fine
+        // enough for the compensated density's steps down to 0.
         let env = EnvLight::new(&image(16, 8, |i, j| [(i * j) as f32, 1.0, 0.0]));
-        let (m, mut sum) = (400, 0.0f64);
+        let (m, mut sum) = (3000, 0.0f64);
         for a in 0..m {
             for b in 0..m {
                 let phi = (a as f32 + 0.5) / m as f32 * 2.0 * PI;

@@ -46,9 +46,9 @@ pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
     ("sphere-1m", SuiteSize::Full, "379cfc6e6825943c"),
     ("sphere-1m", SuiteSize::Quick, "b5069d2f48863aed"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
-    ("asset-views", SuiteSize::Full, "06bb533d1555cd1b"),
-    ("asset-views", SuiteSize::Quick, "755e67f4a7359d2d"),
-    ("asset-views", SuiteSize::Tiny, "7e57706ba6c2e761"),
+    ("asset-views", SuiteSize::Full, "a78f74845d158e86"),
+    ("asset-views", SuiteSize::Quick, "56fc1bbe7a8e1dbc"),
+    ("asset-views", SuiteSize::Tiny, "e291f00214880896"),
 ];
 
 /// How big the suite's renders are.
