@@ -7,10 +7,13 @@
 //!
 //! Sampling: a piecewise-constant 2D distribution over the `(u, v)` unit
 //! square on a grid of cells (the image's texels, subdivided to at least
-//! [`MIN_ROWS`] rows), each cell weighted by how far the largest luminance
-//! the bilinear lookup can return inside it exceeds the mean of those
-//! maxima over the sphere, times `sin θ` at its centre (the solid angle of
-//! a row of cells is proportional to it). That is *MIS compensation*
+//! [`MIN_ROWS`] rows), each cell weighted by how far the mean luminance of
+//! the bilinear lookup over it exceeds the mean over the sphere, times
+//! `sin θ` at its centre (the solid angle of a row of cells is
+//! proportional to it). The cell's mean (not the largest value the lookup
+//! reaches in it, which spread a one-texel sun over nine cells) draws a
+//! direction in proportion to the radiance it will see. Weighting by
+//! excess over the sphere's mean is *MIS compensation*
 //! (Karlík, Šik, Vévoda, Skřivan and Křivánek, "MIS Compensation:
 //! Optimizing Sampling Techniques in Multiple Importance Sampling", 2019;
 //! pbrt-v4's image infinite light does the same): the directions no
@@ -209,8 +212,30 @@ pub fn sorted(sums: &[f32]) -> bool {
     sums.iter().all(|s| !s.is_nan()) && sums.windows(2).all(|w| w[0] <= w[1])
 }
 
+/// The mean over `[a, b]` (texel units, `a < b`) of the hat function of
+/// texel `j` (1 at its centre `j + ½`, 0 from one texel away): texel `j`'s
+/// share in the mean of the bilinear lookup over that interval, per axis.
+/// The shares of the texels an interval touches sum to 1.
+fn hat_share(j: i64, a: f64, b: f64) -> f64 {
+    let m = j as f64 + 0.5;
+    // ∫ from −∞ to x of max(0, 1 − |u − m|) du.
+    let f = |x: f64| {
+        let s = x - m;
+        if s <= -1.0 {
+            0.0
+        } else if s <= 0.0 {
+            (s + 1.0) * (s + 1.0) / 2.0
+        } else if s < 1.0 {
+            1.0 - (1.0 - s) * (1.0 - s) / 2.0
+        } else {
+            1.0
+        }
+    };
+    (f(b) - f(a)) / (b - a)
+}
+
 /// MIS compensation of the sampling grid's weights (see the module's
-/// documentation): `weight` holds each cell's largest luminance, row by
+/// documentation): `weight` holds each cell's mean luminance, row by
 /// row, `sines[r]` the `sin θ` of row `r`'s centre; each becomes
 /// `max(L − L̄, 0) · sin θ`, `L̄` the mean of the cells' luminances by solid
 /// angle, or `L · sin θ` where no cell exceeds `L̄`.
@@ -252,22 +277,22 @@ impl EnvLight {
         let (sin_r, cos_r) = env.rotation_deg.to_radians().sin_cos();
         let k = MIN_ROWS.div_ceil(height).max(1);
         let (cols, rows) = (width * k, height * k);
-        // Each cell: the largest luminance among the texels the bilinear
-        // lookup reads inside it, times sin θ at its centre.
-        // The texels' luminances, and each column's texel columns (wrapped),
-        // found once rather than per cell: the same maxima, taken in the
-        // same order.
+        // Each cell: the mean luminance of the bilinear lookup over it (per
+        // axis, each texel's share is its hat function's mean over the
+        // cell: ⅛, ¾, ⅛ where cells are texels). The texels' luminances,
+        // and each column's texel columns (wrapped) with their shares, are
+        // found once rather than per cell.
         let lum: Vec<f32> = texels.iter().map(|&t| luminance(t)).collect();
         let touched = |c: usize| {
             let lo = ((c as f64 / k as f64) - 0.5).floor() as i64;
             let hi = (((c + 1) as f64 / k as f64) - 0.5).floor() as i64 + 1;
-            (lo, hi)
+            let (a, b) = (c as f64 / k as f64, (c + 1) as f64 / k as f64);
+            (lo..=hi).map(move |j| (j, hat_share(j, a, b)))
         };
-        let col_texels: Vec<Vec<usize>> = (0..cols)
+        let col_texels: Vec<Vec<(usize, f64)>> = (0..cols)
             .map(|c| {
-                let (lo, hi) = touched(c);
-                (lo..=hi)
-                    .map(|i| i.rem_euclid(width as i64) as usize)
+                touched(c)
+                    .map(|(i, w)| (i.rem_euclid(width as i64) as usize, w))
                     .collect()
             })
             .collect();
@@ -278,22 +303,20 @@ impl EnvLight {
             let theta = (r as f64 + 0.5) / rows as f64 * std::f64::consts::PI;
             let sin = theta.sin();
             sines[r] = sin;
-            // Texel rows touched: the cell's v-range in texel units, less ½.
-            let (lo, hi) = touched(r);
-            let row_texels: Vec<&[f32]> = (lo..=hi)
-                .map(|j| {
+            // Texel rows touched (clamped) and their shares.
+            let row_texels: Vec<(&[f32], f64)> = touched(r)
+                .map(|(j, w)| {
                     let j = j.clamp(0, height as i64 - 1) as usize;
-                    &lum[j * width..(j + 1) * width]
+                    (&lum[j * width..(j + 1) * width], w)
                 })
                 .collect();
             for (c, is) in col_texels.iter().enumerate() {
-                let mut most = 0.0f32;
-                for row in &row_texels {
-                    for &i in is {
-                        most = most.max(row[i]);
-                    }
+                let mut sum = 0.0f64;
+                for &(row, wr) in &row_texels {
+                    let across: f64 = is.iter().map(|&(i, wc)| wc * f64::from(row[i])).sum();
+                    sum += wr * across;
                 }
-                weight[r * cols + c] = f64::from(most);
+                weight[r * cols + c] = sum;
             }
         }
         compensate(&mut weight, &sines);
@@ -1360,6 +1383,36 @@ mod tests {
     }
 
     #[test]
+    fn a_cells_weight_is_the_lookups_mean_over_it() {
+        // One bright texel in a black image: its cell and the eight around
+        // it share its light as the bilinear lookup spreads it (⅛, ¾, ⅛
+        // per axis: (¾)², ¾·⅛ and ⅛² of it), not nine equal shares.
+        let share = |j: i64, c: i64| hat_share(j, c as f64, c as f64 + 1.0);
+        assert!((share(5, 5) - 0.75).abs() < 1e-12);
+        assert!((share(5, 4) - 0.125).abs() < 1e-12 && (share(5, 6) - 0.125).abs() < 1e-12);
+        assert_eq!(share(5, 7), 0.0);
+        let total: f64 = (-1..=1).map(|d| share(5 + d, 5)).sum();
+        assert!((total - 1.0).abs() < 1e-12);
+        // Subdivided cells (a 4-row image has 8 sub-rows per texel row).
+        let sub: f64 = (-1..=1).map(|d| hat_share(1 + d, 1.25, 1.375)).sum();
+        assert!((sub - 1.0).abs() < 1e-12);
+        let env = EnvLight::new(&image(64, 32, |i, j| {
+            if (i, j) == (20, 10) {
+                [1.0; 3]
+            } else {
+                [0.0; 3]
+            }
+        }));
+        let d = |r: usize, c: usize| f64::from(env.density[r * 64 + c]);
+        let sin = |r: usize| ((r as f64 + 0.5) / 32.0 * std::f64::consts::PI).sin();
+        // (Compensation takes the sphere's mean, under 10⁻³, off each.)
+        let centre = d(10, 20) / sin(10);
+        assert!((d(10, 21) / sin(10) / centre - 1.0 / 6.0).abs() < 2e-3);
+        assert!((d(9, 21) / sin(9) / centre - 1.0 / 36.0).abs() < 2e-3);
+        assert_eq!(d(10, 22), 0.0);
+    }
+
+    #[test]
     fn compensation_leaves_the_cells_below_the_mean_to_bsdf_sampling() {
         // Rows brighter towards the top: the cells whose luminance is at
         // most the sphere's mean have density 0, the others density in
@@ -1367,10 +1420,15 @@ mod tests {
         let env = EnvLight::new(&image(4, 32, |_, j| [(32 - j) as f32; 3]));
         let sin = |r: usize| ((r as f64 + 0.5) / 32.0 * std::f64::consts::PI).sin();
         let solid: f64 = (0..32).map(sin).sum();
-        // The bilinear lookup's largest value in a cell of row r is that
-        // of the texel row above it (or its own, at the top); the mean is
-        // of those, by solid angle.
-        let most = |r: usize| f64::from(32 - r.saturating_sub(1) as u32);
+        // The bilinear lookup's mean over a cell of row r is ⅛, ¾, ⅛ of
+        // texel rows r − 1, r, r + 1 (clamped): 32 − r inside, where the
+        // rows are linear, and at the clamped ends 31.875 and 1.125; the
+        // sphere's mean is of those, by solid angle.
+        let most = |r: usize| match r {
+            0 => 31.875,
+            31 => 1.125,
+            _ => f64::from(32 - r as u32),
+        };
         let mean = (0..32).map(|r| most(r) * sin(r)).sum::<f64>() / solid;
         let want: Vec<f64> = (0..32)
             .map(|r| (most(r) - mean).max(0.0) * sin(r))

@@ -46,9 +46,9 @@ pub const EXPECTED_HASHES: &[(&str, SuiteSize, &str)] = &[
     ("sphere-1m", SuiteSize::Full, "379cfc6e6825943c"),
     ("sphere-1m", SuiteSize::Quick, "b5069d2f48863aed"),
     ("sphere-1m", SuiteSize::Tiny, "6e99e6a21864153d"),
-    ("asset-views", SuiteSize::Full, "a78f74845d158e86"),
-    ("asset-views", SuiteSize::Quick, "56fc1bbe7a8e1dbc"),
-    ("asset-views", SuiteSize::Tiny, "e291f00214880896"),
+    ("asset-views", SuiteSize::Full, "7988f285c5d8d70d"),
+    ("asset-views", SuiteSize::Quick, "74333e96ece8f39f"),
+    ("asset-views", SuiteSize::Tiny, "75216d8375aec32e"),
 ];
 
 /// How big the suite's renders are.
