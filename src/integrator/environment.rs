@@ -316,7 +316,9 @@ impl EnvLight {
                     let across: f64 = is.iter().map(|&(i, wc)| wc * f64::from(row[i])).sum();
                     sum += wr * across;
                 }
-                weight[r * cols + c] = sum;
+                // Texels are never negative (the loader clamps them); a
+                // NaN among them weighs nothing (`max` drops it).
+                weight[r * cols + c] = sum.max(0.0);
             }
         }
         compensate(&mut weight, &sines);
@@ -1380,6 +1382,31 @@ mod tests {
                 assert_eq!(built.pdf(a.dir).to_bits(), turned.pdf(a.dir).to_bits());
             }
         }
+    }
+
+    #[test]
+    fn a_nan_or_infinite_texel_leaves_sound_tables() {
+        // A NaN texel weighs nothing: the running sums stay sorted and
+        // every density finite. An infinite one leaves nothing to sample
+        // by (the environment draws no directions), as before.
+        let nan = EnvLight::new(&image(16, 8, |i, j| {
+            if (i, j) == (3, 2) {
+                [f32::NAN, 1.0, 1.0]
+            } else {
+                [0.5, 1.0 + j as f32, 2.0]
+            }
+        }));
+        assert!(sorted(&nan.marginal) && nan.conditional.chunks(nan.cols).all(sorted));
+        assert!(nan.density.iter().all(|d| d.is_finite() && *d >= 0.0));
+        assert!(!nan.is_black());
+        let inf = EnvLight::new(&image(16, 8, |i, j| {
+            if (i, j) == (3, 2) {
+                [f32::INFINITY; 3]
+            } else {
+                [0.5; 3]
+            }
+        }));
+        assert!(inf.is_black() && inf.sample([0.3, 0.6]).is_none());
     }
 
     #[test]
