@@ -238,7 +238,7 @@ fn z_scores(a: &[(f64, f64)], b: &[(f64, f64)]) -> (f64, f64) {
 fn nee_with_environment_sampling_converges_to_bsdfs_image() {
     // A sphere on a ground square under a sky with a small bright sun and
     // a small lamp: nee picks the lamp or the sky by power, samples the
-    // sky by its luminance × sin θ, and weighs both against BSDF sampling.
+    // sky by its compensated luminance × sin θ, and weighs both against BSDF sampling.
     // It must converge to the image of plain BSDF sampling.
     let mut scene = scene(true, "color = [1.0, 1.0, 1.0]");
     scene.environment = Some(sky(37.0));
