@@ -358,29 +358,12 @@ fn a_lit_plane_shows_the_irradiance_of_the_sky_above_it() {
     // the compensated sampling (the plain one) is 39% too bright (z 152).
     use wavetrace::integrator::environment::EnvLight;
     use wavetrace::math::V3;
-    let mut scene = parse(
-        r#"
-name = "lit-plane"
-[camera]
-position = [0.0, 1.0, 0.0]
-look_at = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, -1.0]
-vfov_deg = 30.0
-width = 32
-height = 32
-[integrator]
-max_depth = 2
-[materials.white]
-reflectance = [1.0, 1.0, 1.0]
-[[quad]]
-material = "white"
-vertices = [[-1e3, 0.0, 1e3], [1e3, 0.0, 1e3], [1e3, 0.0, -1e3], [-1e3, 0.0, -1e3]]
-[environment]
-color = [1.0, 1.0, 1.0]
-"#,
-        "lit-plane.toml",
-    )
-    .unwrap();
+    let mut scene = common::ground_scene(
+        [0.0, 1.0, 0.0],
+        30.0,
+        (32, 32),
+        "[environment]\ncolor = [1.0, 1.0, 1.0]",
+    );
     let mut env = scene.environment.clone().unwrap();
     let (w, h) = (32u32, 16u32);
     env.texels = Arc::new(

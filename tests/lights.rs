@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{TempDir, run_ok, stderr};
+use common::{TempDir, ground_scene, run_ok, stderr};
 use glam::Vec3;
 use std::f64::consts::PI;
 use wavetrace::film::Film;
@@ -23,34 +23,6 @@ fn render(scene: &Scene, f: impl FnOnce(&mut RenderSettings)) -> Film {
     let (film, _, _) = Renderer::new(scene, &s).unwrap().render();
     assert_eq!(film.invalid_samples, 0);
     film
-}
-
-/// A white (reflectance 1) diffuse ground square seen from straight above
-/// (`position` of the camera, looking down, +X to the right), with
-/// `extra` (lights, more geometry); `max_depth = 2`: each pixel is the
-/// ground's direct light, `E / π`.
-fn ground_scene(camera: [f32; 3], vfov: f32, (w, h): (u32, u32), extra: &str) -> Scene {
-    let [x, y, z] = camera;
-    let text = format!(
-        r#"
-[camera]
-position = [{x:?}, {y:?}, {z:?}]
-look_at = [{x:?}, 0.0, {z:?}]
-up = [0.0, 0.0, -1.0]
-vfov_deg = {vfov:?}
-width = {w}
-height = {h}
-[integrator]
-max_depth = 2
-[materials.white]
-reflectance = [1.0, 1.0, 1.0]
-[[quad]]
-material = "white"
-vertices = [[-20.0, 0.0, 20.0], [20.0, 0.0, 20.0], [20.0, 0.0, -20.0], [-20.0, 0.0, -20.0]]
-{extra}
-"#
-    );
-    parse(&text, "lights-test.toml").unwrap()
 }
 
 /// Where the ray of pixel `(x, y)` at the point `u` of the pixel meets the

@@ -520,3 +520,31 @@ pub fn assert_engines_close(what: &str, reference: &[[f32; 3]], wavefront: &[[f3
         }
     }
 }
+
+/// A white (reflectance 1) diffuse ground square seen from straight above
+/// (`position` of the camera, looking down, +X to the right), with
+/// `extra` (lights, more geometry); `max_depth = 2`: each pixel is the
+/// ground's direct light, `E / π`.
+pub fn ground_scene(camera: [f32; 3], vfov: f32, (w, h): (u32, u32), extra: &str) -> Scene {
+    let [x, y, z] = camera;
+    let text = format!(
+        r#"
+[camera]
+position = [{x:?}, {y:?}, {z:?}]
+look_at = [{x:?}, 0.0, {z:?}]
+up = [0.0, 0.0, -1.0]
+vfov_deg = {vfov:?}
+width = {w}
+height = {h}
+[integrator]
+max_depth = 2
+[materials.white]
+reflectance = [1.0, 1.0, 1.0]
+[[quad]]
+material = "white"
+vertices = [[-20.0, 0.0, 20.0], [20.0, 0.0, 20.0], [20.0, 0.0, -20.0], [-20.0, 0.0, -20.0]]
+{extra}
+"#
+    );
+    wavetrace::scene::file::parse(&text, "ground.toml").unwrap()
+}
