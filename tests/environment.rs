@@ -65,6 +65,11 @@ material = "white"
 /// A 32×16 sky: a gradient, a dark lower half and a bright small sun at
 /// texel (20, 4), turned by `rotation` degrees.
 fn sky(rotation: f32) -> Environment {
+    sky_with_sun(rotation, [400.0, 380.0, 300.0])
+}
+
+/// [`sky`] with the sun's texel of radiance `sun`.
+fn sky_with_sun(rotation: f32, sun: [f32; 3]) -> Environment {
     let mut env = scene(false, "color = [1.0, 1.0, 1.0]").environment.unwrap();
     let (w, h) = (32u32, 16u32);
     env.texels = Arc::new(
@@ -72,7 +77,7 @@ fn sky(rotation: f32) -> Environment {
             .flat_map(|j| (0..w).map(move |i| (i, j)))
             .map(|(i, j)| {
                 if (i, j) == (20, 4) {
-                    [400.0, 380.0, 300.0]
+                    sun
                 } else if j >= h / 2 {
                     [0.1, 0.08, 0.05]
                 } else {
@@ -364,19 +369,7 @@ fn a_lit_plane_shows_the_irradiance_of_the_sky_above_it() {
         (32, 32),
         "[environment]\ncolor = [1.0, 1.0, 1.0]",
     );
-    let mut env = scene.environment.clone().unwrap();
-    let (w, h) = (32u32, 16u32);
-    env.texels = Arc::new(
-        (0..h)
-            .flat_map(|j| (0..w).map(move |i| (i, j)))
-            .map(|(i, j)| match (i, j) {
-                (20, 4) => [40.0, 38.0, 30.0],
-                _ if j >= h / 2 => [0.1, 0.08, 0.05],
-                _ => [0.3 + 0.02 * i as f32, 0.5, 0.9 - 0.05 * j as f32],
-            })
-            .collect(),
-    );
-    (env.width, env.height, env.rotation_deg) = (w, h, 23.0);
+    let env = sky_with_sun(23.0, [40.0, 38.0, 30.0]);
     let light = EnvLight::new(&env);
     scene.environment = Some(env);
     // E by the midpoint rule in (φ, cos θ) over the upper hemisphere.

@@ -1451,14 +1451,14 @@ mod tests {
         // texel rows r − 1, r, r + 1 (clamped): 32 − r inside, where the
         // rows are linear, and at the clamped ends 31.875 and 1.125; the
         // sphere's mean is of those, by solid angle.
-        let most = |r: usize| match r {
+        let cell = |r: usize| match r {
             0 => 31.875,
             31 => 1.125,
             _ => f64::from(32 - r as u32),
         };
-        let mean = (0..32).map(|r| most(r) * sin(r)).sum::<f64>() / solid;
+        let mean = (0..32).map(|r| cell(r) * sin(r)).sum::<f64>() / solid;
         let want: Vec<f64> = (0..32)
-            .map(|r| (most(r) - mean).max(0.0) * sin(r))
+            .map(|r| (cell(r) - mean).max(0.0) * sin(r))
             .collect();
         let total: f64 = want.iter().sum::<f64>() * 4.0;
         for (r, want) in want.iter().enumerate() {
